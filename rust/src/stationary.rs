@@ -1,0 +1,271 @@
+//! Stationary distribution of the attack chain and the attacked cost J(θ̃_on).
+//!
+//! Two independent solvers:
+//! * [`structured`]: O(|S|), never builds the matrix. Level σ is a reset-to-zero walk in τ whose
+//!   segment k (τ in (z0 k, z0(k+1)], segment 0 = 0..z0) is fed by the trigger of segment k-1 in
+//!   level σ-1. Balancing the level-crossing (flag-ACK) rate F gives, with u = a^z0,
+//!   π(τ, σ) = (F/u) c̃(σ - k) a^τ, where c̃(0) = 1, c̃(1..=r) = 1 - u and c̃(σ > r) = 1.
+//! * [`gth`]: Grassmann-Taksar-Heyman state reduction on any row-stochastic CSR matrix, free of
+//!   subtractions and so accurate to a few ulps; general but slower.
+//!
+//! [`j_attack`] sums the structured law against the weighted traces per segment: O(r z0), so
+//! |S| = 10^7 and beyond costs microseconds.
+
+use std::collections::BTreeMap;
+
+use crate::chain::{AttackChain, Csr};
+use crate::error::{Error, Result};
+
+/// Largest stationary vector [`structured`] will allocate (0.8 GB of f64).
+pub const MAX_VECTOR_STATES: u128 = 100_000_000;
+
+/// Pairwise summation: error O(log n · eps) instead of O(n · eps).
+pub fn pairwise_sum(x: &[f64]) -> f64 {
+    if x.len() <= 256 {
+        x.iter().sum()
+    } else {
+        let (l, r) = x.split_at(x.len() / 2);
+        pairwise_sum(l) + pairwise_sum(r)
+    }
+}
+
+impl AttackChain {
+    /// c̃(j) of the module docs: relative rate at which level j's walk is entered at τ = 0.
+    fn c_tilde(&self, j: u64) -> f64 {
+        if j == 0 || j > self.r {
+            1.0
+        } else {
+            1.0 - (1.0 - self.lam).powf(self.z0 as f64)
+        }
+    }
+
+    /// Segment of τ: 0 for τ ≤ z0, else ⌈τ/z0⌉ - 1.
+    pub fn segment(&self, tau: u64) -> u64 {
+        if tau <= self.z0 {
+            0
+        } else {
+            (tau - 1) / self.z0
+        }
+    }
+
+    /// Segment sums of a per-τ weight `v` (v[τ] for τ = 0..=z0(kmax+1)): segment 0 is τ = 0..=z0,
+    /// segment k ≥ 1 is τ = z0 k + 1 ..= z0(k+1).
+    fn segment_sums(&self, v: &[f64], kmax: u64) -> Vec<f64> {
+        let z = self.z0 as usize;
+        let mut out = Vec::with_capacity(kmax as usize + 1);
+        out.push(v[..=z].iter().sum());
+        for k in 1..=kmax as usize {
+            out.push(v[z * k + 1..=z * (k + 1)].iter().sum());
+        }
+        out
+    }
+
+    /// Σ over states of c̃(σ-k) v[τ]: (t-r) V_0 + Σ_{σ=1..r} V_σ + (1-u) Σ_{k<r} (r-k) V_k.
+    fn level_sum(&self, seg: &[f64]) -> f64 {
+        let (r, t) = (self.r as usize, self.t as usize);
+        let one_minus_u = self.c_tilde(1.min(self.r));
+        let mut total = (t - r) as f64 * seg[0];
+        total += seg[1..=r].iter().sum::<f64>();
+        if r > 0 {
+            let weighted: f64 = seg[..r]
+                .iter()
+                .enumerate()
+                .map(|(k, v)| (r - k) as f64 * v)
+                .sum();
+            total += one_minus_u * weighted;
+        }
+        total
+    }
+
+    /// Normaliser D = Σ c̃(σ-k) a^τ over all states.
+    fn normaliser(&self) -> f64 {
+        let a = 1.0 - self.lam;
+        let taus = self.z0 * (self.r + 1);
+        let mut pow = 1.0;
+        let mass: Vec<f64> = (0..=taus)
+            .map(|_| {
+                let p = pow;
+                pow *= a;
+                p
+            })
+            .collect();
+        self.level_sum(&self.segment_sums(&mass, self.r))
+    }
+}
+
+/// Stationary law in the paper's state order, in O(|S|) without building the matrix.
+pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
+    let n = chain.num_states();
+    if n > MAX_VECTOR_STATES {
+        return Err(Error::TooLarge {
+            arg: "(z0, r, t)".into(),
+            requested: n,
+            limit: MAX_VECTOR_STATES,
+        });
+    }
+    let a = 1.0 - chain.lam;
+    let scale = 1.0 / chain.normaliser();
+    let mut pi = Vec::with_capacity(n as usize);
+    for sigma in 0..chain.t {
+        let mut pow = scale;
+        for tau in 0..=chain.tau_max(sigma) {
+            let k = chain.segment(tau);
+            pi.push(chain.c_tilde(sigma - k) * pow);
+            pow *= a;
+        }
+    }
+    Ok(pi)
+}
+
+/// J(θ̃_on) = Σ_S π(τ, σ) Tr h^τ(P̄) from the weighted traces w_τ = a^τ Tr h^τ(P̄),
+/// τ = 0..=z0(r+1). O(r z0).
+pub fn j_attack(chain: &AttackChain, w: &[f64]) -> Result<f64> {
+    let need = (chain.z0 * (chain.r + 1) + 1) as usize;
+    if w.len() < need {
+        return Err(Error::invalid("w", format!("needs {need} weighted traces")));
+    }
+    let num = chain.level_sum(&chain.segment_sums(w, chain.r));
+    Ok(num / chain.normaliser())
+}
+
+/// ||π T - π||_1 for the attack chain, applying rules 1)-4) on the fly (no matrix).
+pub fn balance_residual(chain: &AttackChain, pi: &[f64]) -> f64 {
+    let mut next = vec![0.0; pi.len()];
+    let mut i = 0;
+    for sigma in 0..chain.t {
+        for tau in 0..=chain.tau_max(sigma) {
+            let (steps, k) = chain.successors(tau, sigma);
+            for &((ta, si), p) in &steps[..k] {
+                next[chain.index(ta, si) as usize] += p * pi[i];
+            }
+            i += 1;
+        }
+    }
+    next.iter().zip(pi).map(|(x, y)| (x - y).abs()).sum()
+}
+
+/// Stationary law of any irreducible row-stochastic CSR matrix by GTH state reduction.
+pub fn gth(m: &Csr) -> Result<Vec<f64>> {
+    let n = m.n;
+    if n == 0 {
+        return Err(Error::invalid("T", "has no states"));
+    }
+    // Rows as ordered maps (fill-in lands here); columns as the set of rows pointing in.
+    let mut rows: Vec<BTreeMap<usize, f64>> = vec![BTreeMap::new(); n];
+    let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for i in 0..n {
+        for k in m.indptr[i]..m.indptr[i + 1] {
+            let (j, p) = (m.indices[k], m.data[k]);
+            if !(p.is_finite() && p >= 0.0) || j >= n {
+                return Err(Error::invalid("T", format!("bad entry ({i}, {j}) = {p}")));
+            }
+            if p > 0.0 {
+                *rows[i].entry(j).or_insert(0.0) += p;
+                cols[j].push(i);
+            }
+        }
+    }
+    let mut s = vec![0.0; n];
+    for k in (1..n).rev() {
+        let sk: f64 = rows[k].range(..k).map(|(_, p)| p).sum();
+        if sk <= 0.0 {
+            return Err(Error::invalid(
+                "T",
+                format!("the chain is reducible (state {k} cannot reach a lower state)"),
+            ));
+        }
+        s[k] = sk;
+        let outs: Vec<(usize, f64)> = rows[k].range(..k).map(|(&j, &p)| (j, p / sk)).collect();
+        let mut ins = std::mem::take(&mut cols[k]);
+        ins.sort_unstable();
+        ins.dedup();
+        for &i in ins.iter().filter(|&&i| i < k) {
+            let pik = rows[i][&k];
+            for &(j, pkj) in &outs {
+                let e = rows[i].entry(j).or_insert_with(|| {
+                    cols[j].push(i);
+                    0.0
+                });
+                *e += pik * pkj;
+            }
+        }
+        cols[k] = ins;
+    }
+    let mut pi = vec![0.0; n];
+    pi[0] = 1.0;
+    for k in 1..n {
+        let v: f64 = cols[k].iter().filter(|&&i| i < k).map(|&i| pi[i] * rows[i][&k]).sum();
+        pi[k] = v / s[k];
+    }
+    let total = pairwise_sum(&pi);
+    pi.iter_mut().for_each(|x| *x /= total);
+    Ok(pi)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn structured_matches_gth() {
+        for &(lam, z0, r, t) in &[
+            (0.5, 2, 1, 3),
+            (0.3, 1, 0, 1),
+            (0.3, 1, 0, 4),
+            (0.7, 3, 4, 7),
+            (0.05, 2, 5, 6),
+            (0.95, 4, 2, 9),
+            (0.5, 2, 6, 12),
+        ] {
+            let c = AttackChain::new(lam, z0, r, t).unwrap();
+            let fast = structured(&c).unwrap();
+            let slow = gth(&c.build_csr().unwrap()).unwrap();
+            for (x, y) in fast.iter().zip(&slow) {
+                assert!((x - y).abs() <= 1e-13, "{lam} {z0} {r} {t}: {x} vs {y}");
+            }
+            assert!((pairwise_sum(&fast) - 1.0).abs() < 1e-13);
+            assert!(balance_residual(&c, &fast) < 1e-14);
+        }
+    }
+
+    #[test]
+    fn gth_two_state() {
+        // QuantEcon's test chain: [[0.4, 0.6], [0.2, 0.8]] -> [0.25, 0.75].
+        let m = Csr {
+            n: 2,
+            indptr: vec![0, 2, 4],
+            indices: vec![0, 1, 0, 1],
+            data: vec![0.4, 0.6, 0.2, 0.8],
+        };
+        let pi = gth(&m).unwrap();
+        assert!((pi[0] - 0.25).abs() < 1e-15 && (pi[1] - 0.75).abs() < 1e-15);
+    }
+
+    #[test]
+    fn j_attack_equals_pi_dot_traces() {
+        let tr: Vec<f64> = (0..100).map(|i| 1.0 + 1.2f64.powi(i)).collect();
+        for &(lam, z0, r, t) in &[(0.5, 2, 1, 5), (0.4, 3, 3, 4), (0.6, 1, 7, 11)] {
+            let c = AttackChain::new(lam, z0, r, t).unwrap();
+            let w: Vec<f64> = tr.iter().enumerate().map(|(i, x)| (1.0 - lam).powi(i as i32) * x).collect();
+            let pi = gth(&c.build_csr().unwrap()).unwrap();
+            let direct: f64 = c
+                .states()
+                .unwrap()
+                .iter()
+                .zip(&pi)
+                .map(|(&(tau, _), p)| p * tr[tau as usize])
+                .sum();
+            let j = j_attack(&c, &w).unwrap();
+            assert!((j - direct).abs() < 1e-12 * direct, "{j} vs {direct}");
+        }
+    }
+
+    /// r = 0 is the unattacked online schedule: J = λ/(1 - a^(z0+1)) Σ_{i≤z0} w_i.
+    #[test]
+    fn no_attack_is_online() {
+        let w: Vec<f64> = (0..10).map(|i| 0.6f64.powi(i) * (2.0 + i as f64)).collect();
+        let c = AttackChain::new(0.4, 3, 0, 5).unwrap();
+        let expect = 0.4 / (1.0 - 0.6f64.powi(4)) * w[..4].iter().sum::<f64>();
+        assert!((j_attack(&c, &w).unwrap() - expect).abs() < 1e-14 * expect);
+    }
+}
