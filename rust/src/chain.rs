@@ -160,7 +160,10 @@ mod tests {
                 for r in 0..t {
                     let c = AttackChain::new(0.3, z0, r, t).unwrap();
                     assert_eq!(c.states().unwrap().len() as u128, c.num_states());
-                    assert_eq!(c.level_offset(t - 1) + c.tau_max(t - 1) + 1, c.num_states() as u64);
+                    assert_eq!(
+                        c.level_offset(t - 1) + c.tau_max(t - 1) + 1,
+                        c.num_states() as u64
+                    );
                 }
             }
         }
@@ -169,6 +172,7 @@ mod tests {
     /// The paper's 11x11 example (z0 = 2, r = 1, t = 3), written out by hand from rules 1)-4) in
     /// the paper's column-stochastic convention, with ERRATA item 4 applied (column 3's λ in row 4).
     #[test]
+    #[allow(clippy::needless_range_loop)]
     fn paper_example_matrix() {
         let (l, a) = (0.37, 0.63);
         #[rustfmt::skip]

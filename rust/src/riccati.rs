@@ -10,6 +10,9 @@ use nalgebra::{Complex, DMatrix};
 
 use crate::error::{Error, Result};
 
+/// Most traces a single call will compute (8 bytes each).
+pub const MAX_TRACES: u128 = 200_000_000;
+
 /// Default relative tolerance of the doubling iteration.
 pub const DEFAULT_TOL: f64 = 1e-14;
 /// Default cap on doubling steps (each squares the closed-loop contraction).
@@ -55,7 +58,10 @@ fn check_matrix(arg: &str, m: &DMatrix<f64>, rows: usize, cols: usize) -> Result
         ));
     }
     if let Some(x) = m.iter().find(|x| !x.is_finite()) {
-        return Err(Error::invalid(arg, format!("contains a non-finite entry ({x})")));
+        return Err(Error::invalid(
+            arg,
+            format!("contains a non-finite entry ({x})"),
+        ));
     }
     Ok(())
 }
@@ -102,7 +108,8 @@ fn undetectable_modes(a: &DMatrix<f64>, c: &DMatrix<f64>) -> Result<Vec<Complex<
         let mut pbh = DMatrix::<Complex<f64>>::zeros(n + m, n);
         for i in 0..n {
             for j in 0..n {
-                pbh[(i, j)] = Complex::new(a[(i, j)], 0.0) - if i == j { ev } else { Complex::new(0.0, 0.0) };
+                pbh[(i, j)] =
+                    Complex::new(a[(i, j)], 0.0) - if i == j { ev } else { Complex::new(0.0, 0.0) };
             }
         }
         for i in 0..m {
@@ -117,7 +124,11 @@ fn undetectable_modes(a: &DMatrix<f64>, c: &DMatrix<f64>) -> Result<Vec<Complex<
                 iterations: 10_000,
                 residual: f64::NAN,
             })?;
-        let smin = svd.singular_values.iter().copied().fold(f64::INFINITY, f64::min);
+        let smin = svd
+            .singular_values
+            .iter()
+            .copied()
+            .fold(f64::INFINITY, f64::min);
         if smin <= 1e-9 * scale {
             bad.push(ev);
         }
@@ -150,12 +161,12 @@ fn sda_prior(
     for it in 1..=max_iter {
         let w = &eye + &gk * &hk;
         let lu = w.lu();
-        let x1 = lu.solve(&ak).ok_or_else(|| Error::NotConverged {
+        let x1 = lu.solve(&ak).ok_or(Error::NotConverged {
             what: "Riccati doubling (singular I + G H)",
             iterations: it,
             residual: change,
         })?;
-        let x2 = lu.solve(&gk).ok_or_else(|| Error::NotConverged {
+        let x2 = lu.solve(&gk).ok_or(Error::NotConverged {
             what: "Riccati doubling (singular I + G H)",
             iterations: it,
             residual: change,
@@ -190,12 +201,7 @@ fn sda_prior(
 
 impl LinearSystem {
     /// Validates (A, C, Q, R) and solves for P̄ with the default tolerance.
-    pub fn new(
-        a: DMatrix<f64>,
-        c: DMatrix<f64>,
-        q: DMatrix<f64>,
-        r: DMatrix<f64>,
-    ) -> Result<Self> {
+    pub fn new(a: DMatrix<f64>, c: DMatrix<f64>, q: DMatrix<f64>, r: DMatrix<f64>) -> Result<Self> {
         Self::with_tolerance(a, c, q, r, DEFAULT_TOL, DEFAULT_MAX_ITER)
     }
 
@@ -221,7 +227,10 @@ impl LinearSystem {
         check_matrix("Q", &q, n, n)?;
         check_matrix("R", &r, m, m)?;
         if !(tol.is_finite() && tol > 0.0) {
-            return Err(Error::invalid("tol", format!("must be positive, got {tol}")));
+            return Err(Error::invalid(
+                "tol",
+                format!("must be positive, got {tol}"),
+            ));
         }
         if max_iter == 0 {
             return Err(Error::invalid("max_iter", "must be at least 1"));
@@ -395,6 +404,25 @@ impl LinearSystem {
         out
     }
 
+    /// [`LinearSystem::weighted_traces`] for `n` given as a wide count: refuses `n` above
+    /// [`MAX_TRACES`] before allocating.
+    pub fn checked_weighted_traces(&self, weight: f64, n: u128, arg: &str) -> Result<Vec<f64>> {
+        if n >= MAX_TRACES {
+            return Err(Error::TooLarge {
+                arg: arg.into(),
+                requested: n + 1,
+                limit: MAX_TRACES,
+            });
+        }
+        if !(weight.is_finite() && weight >= 0.0) {
+            return Err(Error::invalid(
+                "weight",
+                format!("must be finite and >= 0, got {weight}"),
+            ));
+        }
+        Ok(self.weighted_traces(weight, n as usize))
+    }
+
     /// Solves the Stein equation X = s A X A' + C0 by Smith's doubling; `None` if s ρ(A)² >= 1.
     pub fn stein(&self, s: f64, c0: &DMatrix<f64>) -> Result<Option<DMatrix<f64>>> {
         if s * self.rho * self.rho >= 1.0 {
@@ -445,7 +473,11 @@ mod tests {
         let prior = (-qb + (qb * qb - 4.0 * qa * qc).sqrt()) / (2.0 * qa);
         let pbar = prior - prior * prior * c * c / (c * c * prior + r);
         let s = scalar(a, c, q, r);
-        assert!((s.pbar()[(0, 0)] - pbar).abs() < 1e-13 * pbar, "{} vs {pbar}", s.pbar()[(0, 0)]);
+        assert!(
+            (s.pbar()[(0, 0)] - pbar).abs() < 1e-13 * pbar,
+            "{} vs {pbar}",
+            s.pbar()[(0, 0)]
+        );
         assert!(s.residual() < 1e-13);
         let tr = s.h_traces(3);
         assert!((tr[1] - (a * a * pbar + q)).abs() < 1e-13);
@@ -498,8 +530,13 @@ mod tests {
         )
         .unwrap_err();
         assert!(e.to_string().starts_with("C:"), "{e}");
-        let e = LinearSystem::new(DMatrix::from_element(1, 1, f64::NAN), one.clone(), one.clone(), one)
-            .unwrap_err();
+        let e = LinearSystem::new(
+            DMatrix::from_element(1, 1, f64::NAN),
+            one.clone(),
+            one.clone(),
+            one,
+        )
+        .unwrap_err();
         assert!(e.to_string().starts_with("A:"), "{e}");
     }
 

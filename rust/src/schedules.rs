@@ -65,7 +65,10 @@ pub fn j_offline(w: &[f64], lam: f64, p: u64, q: u64) -> Result<f64> {
     check_lam(lam)?;
     let (s0, m, n) = offline_blocks(p, q)?;
     if (w.len() as u64) < s0 + 2 {
-        return Err(Error::invalid("w", format!("needs {} weighted traces", s0 + 2)));
+        return Err(Error::invalid(
+            "w",
+            format!("needs {} weighted traces", s0 + 2),
+        ));
     }
     let total = m as f64 * block_cost(w, lam, s0 + 2) + n as f64 * block_cost(w, lam, s0 + 1);
     Ok(total / q as f64)
@@ -103,7 +106,10 @@ pub fn j_online(w: &[f64], lam: f64, z0: u64, mu: f64) -> Result<f64> {
     }
     let z = z0 as usize;
     if w.len() < z + 2 {
-        return Err(Error::invalid("w", format!("needs {} weighted traces", z + 2)));
+        return Err(Error::invalid(
+            "w",
+            format!("needs {} weighted traces", z + 2),
+        ));
     }
     let head: f64 = w[..=z].iter().sum();
     let tail = if mu < 1.0 { (1.0 - mu) * w[z + 1] } else { 0.0 };
@@ -132,7 +138,10 @@ mod tests {
         assert_eq!(offline_blocks(1, 7).unwrap(), (6, 0, 1));
         assert_eq!(offline_schedule(1, 7).unwrap(), vec![1, 0, 0, 0, 0, 0, 0]);
         assert_eq!(offline_schedule(2, 3).unwrap(), vec![1, 0, 1]);
-        assert_eq!(offline_schedule(3, 8).unwrap(), vec![1, 0, 0, 1, 0, 0, 1, 0]);
+        assert_eq!(
+            offline_schedule(3, 8).unwrap(),
+            vec![1, 0, 0, 1, 0, 0, 1, 0]
+        );
     }
 
     #[test]
@@ -158,8 +167,14 @@ mod tests {
     fn j_offline_matches_direct_propagation() {
         let lam = 0.35;
         let a: f64 = 1.0 - lam;
-        let tr: Vec<f64> = (0..50).map(|i| 1.0 + 0.3 * i as f64 + 0.01 * (i * i) as f64).collect();
-        let w: Vec<f64> = tr.iter().enumerate().map(|(i, t)| a.powi(i as i32) * t).collect();
+        let tr: Vec<f64> = (0..50)
+            .map(|i| 1.0 + 0.3 * i as f64 + 0.01 * (i * i) as f64)
+            .collect();
+        let w: Vec<f64> = tr
+            .iter()
+            .enumerate()
+            .map(|(i, t)| a.powi(i as i32) * t)
+            .collect();
         for (p, q) in [(1u64, 7u64), (2, 7), (3, 8), (5, 12), (1, 2)] {
             let sched = offline_schedule(p, q).unwrap();
             let mut direct = 0.0;
@@ -179,7 +194,10 @@ mod tests {
             }
             direct /= q as f64;
             let closed = j_offline(&w, lam, p, q).unwrap();
-            assert!((closed - direct).abs() < 1e-12 * direct, "{p}/{q}: {closed} vs {direct}");
+            assert!(
+                (closed - direct).abs() < 1e-12 * direct,
+                "{p}/{q}: {closed} vs {direct}"
+            );
         }
     }
 

@@ -153,14 +153,14 @@ pub fn gth(m: &Csr) -> Result<Vec<f64>> {
     // Rows as ordered maps (fill-in lands here); columns as the set of rows pointing in.
     let mut rows: Vec<BTreeMap<usize, f64>> = vec![BTreeMap::new(); n];
     let mut cols: Vec<Vec<usize>> = vec![Vec::new(); n];
-    for i in 0..n {
+    for (i, row) in rows.iter_mut().enumerate() {
         for k in m.indptr[i]..m.indptr[i + 1] {
             let (j, p) = (m.indices[k], m.data[k]);
             if !(p.is_finite() && p >= 0.0) || j >= n {
                 return Err(Error::invalid("T", format!("bad entry ({i}, {j}) = {p}")));
             }
             if p > 0.0 {
-                *rows[i].entry(j).or_insert(0.0) += p;
+                *row.entry(j).or_insert(0.0) += p;
                 cols[j].push(i);
             }
         }
@@ -194,7 +194,11 @@ pub fn gth(m: &Csr) -> Result<Vec<f64>> {
     let mut pi = vec![0.0; n];
     pi[0] = 1.0;
     for k in 1..n {
-        let v: f64 = cols[k].iter().filter(|&&i| i < k).map(|&i| pi[i] * rows[i][&k]).sum();
+        let v: f64 = cols[k]
+            .iter()
+            .filter(|&&i| i < k)
+            .map(|&i| pi[i] * rows[i][&k])
+            .sum();
         pi[k] = v / s[k];
     }
     let total = pairwise_sum(&pi);
@@ -246,7 +250,11 @@ mod tests {
         let tr: Vec<f64> = (0..100).map(|i| 1.0 + 1.2f64.powi(i)).collect();
         for &(lam, z0, r, t) in &[(0.5, 2, 1, 5), (0.4, 3, 3, 4), (0.6, 1, 7, 11)] {
             let c = AttackChain::new(lam, z0, r, t).unwrap();
-            let w: Vec<f64> = tr.iter().enumerate().map(|(i, x)| (1.0 - lam).powi(i as i32) * x).collect();
+            let w: Vec<f64> = tr
+                .iter()
+                .enumerate()
+                .map(|(i, x)| (1.0 - lam).powi(i as i32) * x)
+                .collect();
             let pi = gth(&c.build_csr().unwrap()).unwrap();
             let direct: f64 = c
                 .states()

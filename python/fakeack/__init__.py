@@ -1,0 +1,42 @@
+"""fakeack: the fake-ACK attack on ACK-based sensor power schedules for remote state estimation.
+
+Exact steady-state analysis, Monte Carlo of the real protocol and the attacker threshold, after
+Y. Li, D. E. Quevedo, S. Dey, L. Shi, "Fake-Acknowledgment Attack on ACK-based Sensor Power
+Schedule for Remote State Estimation", with the corrections listed in the README's model notes.
+"""
+
+from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError
+from .attack import attack_chain, balance_residual, j_attack, num_states, stationary_distribution
+from .schedules import (
+    OnlineDesign,
+    design_online,
+    energy_ratio,
+    j_max,
+    j_offline,
+    j_online,
+    offline_schedule,
+    online_high_power_rate,
+)
+from .system import LinearSystem
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "MAX_BUILD_STATES",
+    "MAX_VECTOR_STATES",
+    "ConvergenceError",
+    "LinearSystem",
+    "OnlineDesign",
+    "attack_chain",
+    "balance_residual",
+    "design_online",
+    "energy_ratio",
+    "j_attack",
+    "j_max",
+    "j_offline",
+    "j_online",
+    "num_states",
+    "offline_schedule",
+    "online_high_power_rate",
+    "stationary_distribution",
+]

@@ -1,0 +1,143 @@
+"""The fake-ACK attack (Sec. IV): its Markov chain, stationary law and cost."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from . import _fakeack
+from ._validate import as_int, as_probability
+from .system import _core
+
+__all__ = [
+    "attack_chain",
+    "balance_residual",
+    "j_attack",
+    "num_states",
+    "stationary_distribution",
+]
+
+
+def _check(lam: Any, z0: Any, r: Any, t: Any) -> tuple[float, int, int, int]:
+    lam = as_probability("lam", lam)
+    z0 = as_int("z0", z0, minimum=1)
+    t = as_int("t", t, minimum=1)
+    r = as_int("r", r, minimum=0)
+    if r >= t:
+        raise ValueError(f"r must be smaller than t = {t}, got r = {r}")
+    return lam, z0, r, t
+
+
+def num_states(z0: Any, r: Any, t: Any) -> int:
+    r"""Number of chain states :math:`|\mathcal S| = \tfrac12 r(r+1)z_0 + t(z_0+1)` (Sec. IV-B)."""
+    _, z0, r, t = _check(0.5, z0, r, t)
+    return int(_fakeack.num_states(z0, r, t))
+
+
+def attack_chain(lam: Any, z0: Any, r: Any, t: Any) -> tuple[np.ndarray, sp.csr_array]:
+    r"""The Markov chain :math:`S_k = (\tau_k, \sigma_k)` under the fake-ACK attack (Sec. IV-B).
+
+    States follow the paper's order (level :math:`\sigma = 0..t-1`; in level :math:`\sigma \le r`,
+    :math:`\tau = 0..z_0(\sigma+1)`, else :math:`\tau = 0..z_0`); transitions follow rules 1)-4),
+    with the attacker blocking the first r of every t flag-ACKs (ERRATA item 3).
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length :math:`z_0 \ge 1` (fixed, :math:`\mu = 1`).
+    r, t : int
+        The attacker blocks the first ``r`` of every ``t`` flag-ACKs, ``0 <= r < t``. A pair that
+        is not in lowest terms is a different attack (kr blocked in a row out of kt) and is built
+        as given.
+
+    Returns
+    -------
+    states : numpy.ndarray
+        ``(|S|, 2)`` int64 array of ``[tau, sigma]``.
+    T : scipy.sparse.csr_array
+        Row-stochastic: ``T[i, j] = P[S_{k+1} = j | S_k = i]``, i.e. the transpose of the paper's
+        column-stochastic :math:`\mathcal T_s` (for ``z0=2, r=1, t=3`` its eq. (12), with ERRATA
+        item 4 applied).
+
+    Raises
+    ------
+    ValueError
+        On bad arguments, or when :math:`|\mathcal S|` exceeds ``fakeack.MAX_BUILD_STATES``
+        (2·10^7); :func:`stationary_distribution` and :func:`j_attack` need no matrix.
+    """
+    lam, z0, r, t = _check(lam, z0, r, t)
+    states, indptr, indices, data = _fakeack.attack_chain(lam, z0, r, t)
+    n = states.shape[0]
+    return states, sp.csr_array((data, indices, indptr), shape=(n, n))
+
+
+def stationary_distribution(
+    lam: Any, z0: Any, r: Any, t: Any, *, method: str = "structured"
+) -> np.ndarray:
+    r"""Stationary law :math:`\Pi^\star` of the attack chain, aligned with :func:`attack_chain`.
+
+    Solves :math:`\mathcal T_s \Pi = \Pi`, :math:`\sum\Pi = 1` (eq. (13)).
+
+    Parameters
+    ----------
+    lam, z0, r, t
+        As in :func:`attack_chain`.
+    method : {"structured", "gth"}
+        ``"structured"`` (default) fills the closed form
+        :math:`\pi(\tau,\sigma) \propto \tilde c(\sigma-k)\,a^\tau` in :math:`O(|\mathcal S|)`
+        without building the matrix (k is the segment of :math:`\tau`; :math:`\tilde c = 1` at
+        level 0 and above r, :math:`1-a^{z_0}` between); see the model notes in the README.
+        ``"gth"`` builds the matrix and runs Grassmann-Taksar-Heyman state reduction, an
+        independent general solver.
+
+    Returns
+    -------
+    numpy.ndarray
+        Non-negative, summing to 1. Check it with :func:`balance_residual`.
+    """
+    lam, z0, r, t = _check(lam, z0, r, t)
+    if method == "structured":
+        return _fakeack.stationary_structured(lam, z0, r, t)
+    if method == "gth":
+        _, indptr, indices, data = _fakeack.attack_chain(lam, z0, r, t)
+        return _fakeack.stationary_gth(indptr, indices, data)
+    raise ValueError(f"method must be 'structured' or 'gth', got {method!r}")
+
+
+def balance_residual(lam: Any, z0: Any, r: Any, t: Any, pi: Any) -> float:
+    r""":math:`\|\Pi' T - \Pi'\|_1` of a candidate stationary law, applying rules 1)-4) on the fly."""
+    lam, z0, r, t = _check(lam, z0, r, t)
+    arr = np.ascontiguousarray(pi, dtype=np.float64)
+    if arr.ndim != 1:
+        raise ValueError(f"pi must be 1-D, got {arr.ndim}-D")
+    return _fakeack.balance_residual(lam, z0, r, t, arr)
+
+
+def j_attack(s: Any, lam: Any, z0: Any, r: Any, t: Any) -> float:
+    r"""Cost :math:`J(\tilde\theta_{\mathrm{on}})` under the fake-ACK attack (Sec. IV-B, eq. (14)).
+
+    :math:`J = \sum_{\mathcal S}\Pi^\star(\tau,\sigma)\,\mathrm{Tr}\,h^\tau(\bar P)`, summed per
+    segment of the structured law against the weighted traces
+    :math:`a^\tau\mathrm{Tr}\,h^\tau(\bar P)` in :math:`O(r z_0)`: chains of :math:`10^7` states
+    and more cost microseconds, and long blocked runs never overflow where the weighted terms are
+    finite.
+
+    Parameters
+    ----------
+    s : LinearSystem
+        The process and sensor.
+    lam, z0, r, t
+        As in :func:`attack_chain` (``r = 0`` is the unattacked online schedule).
+
+    Returns
+    -------
+    float
+        The attacked cost; ``inf`` only if a weighted trace overflows.
+    """
+    core = _core(s)
+    lam, z0, r, t = _check(lam, z0, r, t)
+    return core.j_attack(lam, z0, r, t)

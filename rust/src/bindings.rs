@@ -1,0 +1,282 @@
+//! The PyO3 module `fakeack._fakeack`: converts types and maps [`Error`] to Python exceptions.
+//! No numerics here; long calls run with the GIL released on owned data.
+
+use nalgebra::DMatrix;
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
+use pyo3::prelude::*;
+
+use crate::chain::{AttackChain, Csr};
+use crate::error::Error;
+use crate::riccati::LinearSystem;
+use crate::{schedules, stationary};
+
+create_exception!(
+    _fakeack,
+    ConvergenceError,
+    PyValueError,
+    "An iterative solver stopped without meeting its tolerance."
+);
+
+impl From<Error> for PyErr {
+    fn from(e: Error) -> PyErr {
+        match e {
+            Error::InvalidArgument { .. } | Error::TooLarge { .. } => {
+                PyValueError::new_err(e.to_string())
+            }
+            Error::NotConverged { .. } => ConvergenceError::new_err(e.to_string()),
+            Error::Interrupted => PyKeyboardInterrupt::new_err(e.to_string()),
+        }
+    }
+}
+
+fn to_dmatrix(x: &PyReadonlyArray2<'_, f64>) -> DMatrix<f64> {
+    let v = x.as_array();
+    DMatrix::from_fn(v.nrows(), v.ncols(), |i, j| v[[i, j]])
+}
+
+fn to_numpy<'py>(py: Python<'py>, m: &DMatrix<f64>) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((m.nrows(), m.ncols()), |(i, j)| m[(i, j)]).into_pyarray(py)
+}
+
+/// A validated system with its steady-state covariance P̄ (wrapped by `fakeack.LinearSystem`).
+#[pyclass(frozen, name = "System", module = "fakeack._fakeack")]
+struct PySystem {
+    inner: LinearSystem,
+}
+
+#[pymethods]
+impl PySystem {
+    #[new]
+    #[pyo3(signature = (a, c, q, r, tol = crate::riccati::DEFAULT_TOL, max_iter = crate::riccati::DEFAULT_MAX_ITER))]
+    fn new(
+        py: Python<'_>,
+        a: PyReadonlyArray2<'_, f64>,
+        c: PyReadonlyArray2<'_, f64>,
+        q: PyReadonlyArray2<'_, f64>,
+        r: PyReadonlyArray2<'_, f64>,
+        tol: f64,
+        max_iter: usize,
+    ) -> PyResult<Self> {
+        let (a, c, q, r) = (
+            to_dmatrix(&a),
+            to_dmatrix(&c),
+            to_dmatrix(&q),
+            to_dmatrix(&r),
+        );
+        let inner = py.detach(|| LinearSystem::with_tolerance(a, c, q, r, tol, max_iter))?;
+        Ok(PySystem { inner })
+    }
+
+    fn pbar<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        to_numpy(py, self.inner.pbar())
+    }
+
+    #[getter]
+    fn residual(&self) -> f64 {
+        self.inner.residual()
+    }
+
+    #[getter]
+    fn iterations(&self) -> usize {
+        self.inner.iterations()
+    }
+
+    #[getter]
+    fn rho(&self) -> f64 {
+        self.inner.rho()
+    }
+
+    fn weighted_traces<'py>(
+        &self,
+        py: Python<'py>,
+        weight: f64,
+        n: u64,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let w = py.detach(|| self.inner.checked_weighted_traces(weight, n as u128, "n"))?;
+        Ok(w.into_pyarray(py))
+    }
+
+    fn j_offline(&self, py: Python<'_>, lam: f64, p: u64, q: u64) -> PyResult<f64> {
+        let (s0, _, _) = schedules::offline_blocks(p, q)?;
+        py.detach(|| {
+            let w = self
+                .inner
+                .checked_weighted_traces(1.0 - lam, s0 as u128 + 1, "ratio")?;
+            schedules::j_offline(&w, lam, p, q)
+        })
+        .map_err(Into::into)
+    }
+
+    fn j_online(&self, lam: f64, z0: u64, mu: f64) -> PyResult<f64> {
+        let w = self
+            .inner
+            .checked_weighted_traces(1.0 - lam, z0 as u128 + 1, "z0")?;
+        Ok(schedules::j_online(&w, lam, z0, mu)?)
+    }
+
+    fn j_max(&self, py: Python<'_>, lam: f64) -> PyResult<f64> {
+        Ok(py.detach(|| schedules::j_max(&self.inner, lam))?)
+    }
+
+    fn j_attack(&self, py: Python<'_>, lam: f64, z0: u64, r: u64, t: u64) -> PyResult<f64> {
+        let chain = AttackChain::new(lam, z0, r, t)?;
+        let n = z0 as u128 * (r as u128 + 1);
+        py.detach(|| {
+            let w = self
+                .inner
+                .checked_weighted_traces(1.0 - lam, n, "(z0, r)")?;
+            stationary::j_attack(&chain, &w)
+        })
+        .map_err(Into::into)
+    }
+}
+
+#[pyfunction]
+fn offline_schedule<'py>(py: Python<'py>, p: u64, q: u64) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let s = schedules::offline_schedule(p, q)?;
+    Ok(s.into_iter()
+        .map(i64::from)
+        .collect::<Vec<_>>()
+        .into_pyarray(py))
+}
+
+#[pyfunction]
+fn online_high_power_rate(lam: f64, z0: u64, mu: f64) -> PyResult<f64> {
+    Ok(schedules::online_high_power_rate(lam, z0, mu)?)
+}
+
+#[pyfunction]
+fn num_states(z0: u64, r: u64, t: u64) -> u128 {
+    crate::chain::num_states(z0, r, t)
+}
+
+type CsrArrays<'py> = (
+    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray1<i64>>,
+    Bound<'py, PyArray1<f64>>,
+);
+
+/// (states (n, 2) of [tau, sigma], indptr, indices, data) of the row-stochastic chain.
+#[pyfunction]
+fn attack_chain<'py>(
+    py: Python<'py>,
+    lam: f64,
+    z0: u64,
+    r: u64,
+    t: u64,
+) -> PyResult<CsrArrays<'py>> {
+    let chain = AttackChain::new(lam, z0, r, t)?;
+    let (states, csr) =
+        py.detach(|| -> crate::Result<_> { Ok((chain.states()?, chain.build_csr()?)) })?;
+    let n = states.len();
+    let flat: Vec<i64> = states
+        .iter()
+        .flat_map(|&(tau, sigma)| [tau as i64, sigma as i64])
+        .collect();
+    let states = Array2::from_shape_vec((n, 2), flat)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?
+        .into_pyarray(py);
+    let to_i64 = |v: Vec<usize>| v.into_iter().map(|x| x as i64).collect::<Vec<_>>();
+    Ok((
+        states,
+        to_i64(csr.indptr).into_pyarray(py),
+        to_i64(csr.indices).into_pyarray(py),
+        csr.data.into_pyarray(py),
+    ))
+}
+
+#[pyfunction]
+fn stationary_structured<'py>(
+    py: Python<'py>,
+    lam: f64,
+    z0: u64,
+    r: u64,
+    t: u64,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let chain = AttackChain::new(lam, z0, r, t)?;
+    Ok(py
+        .detach(|| stationary::structured(&chain))?
+        .into_pyarray(py))
+}
+
+#[pyfunction]
+fn stationary_gth<'py>(
+    py: Python<'py>,
+    indptr: PyReadonlyArray1<'_, i64>,
+    indices: PyReadonlyArray1<'_, i64>,
+    data: PyReadonlyArray1<'_, f64>,
+) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let to_usize = |name: &str, v: &PyReadonlyArray1<'_, i64>| -> PyResult<Vec<usize>> {
+        v.as_array()
+            .iter()
+            .map(|&x| {
+                usize::try_from(x)
+                    .map_err(|_| PyValueError::new_err(format!("{name}: negative entry {x}")))
+            })
+            .collect()
+    };
+    let indptr = to_usize("indptr", &indptr)?;
+    let indices = to_usize("indices", &indices)?;
+    let data: Vec<f64> = data.as_array().iter().copied().collect();
+    let n = indptr.len().saturating_sub(1);
+    if indptr.first() != Some(&0)
+        || indptr.windows(2).any(|w| w[0] > w[1])
+        || indptr.last() != Some(&indices.len())
+        || indices.len() != data.len()
+    {
+        return Err(PyValueError::new_err("T: malformed CSR arrays"));
+    }
+    let csr = Csr {
+        n,
+        indptr,
+        indices,
+        data,
+    };
+    Ok(py.detach(|| stationary::gth(&csr))?.into_pyarray(py))
+}
+
+#[pyfunction]
+fn balance_residual(
+    lam: f64,
+    z0: u64,
+    r: u64,
+    t: u64,
+    pi: PyReadonlyArray1<'_, f64>,
+) -> PyResult<f64> {
+    let chain = AttackChain::new(lam, z0, r, t)?;
+    let pi = pi
+        .as_slice()
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    if pi.len() as u128 != chain.num_states() {
+        return Err(PyValueError::new_err(format!(
+            "pi: expected {} entries, found {}",
+            chain.num_states(),
+            pi.len()
+        )));
+    }
+    Ok(stationary::balance_residual(&chain, pi))
+}
+
+#[pymodule]
+#[pyo3(name = "_fakeack")]
+fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PySystem>()?;
+    m.add("ConvergenceError", m.py().get_type::<ConvergenceError>())?;
+    m.add_function(wrap_pyfunction!(offline_schedule, m)?)?;
+    m.add_function(wrap_pyfunction!(online_high_power_rate, m)?)?;
+    m.add_function(wrap_pyfunction!(num_states, m)?)?;
+    m.add_function(wrap_pyfunction!(attack_chain, m)?)?;
+    m.add_function(wrap_pyfunction!(stationary_structured, m)?)?;
+    m.add_function(wrap_pyfunction!(stationary_gth, m)?)?;
+    m.add_function(wrap_pyfunction!(balance_residual, m)?)?;
+    m.add("MAX_BUILD_STATES", crate::chain::MAX_BUILD_STATES as u64)?;
+    m.add(
+        "MAX_VECTOR_STATES",
+        crate::stationary::MAX_VECTOR_STATES as u64,
+    )?;
+    Ok(())
+}

@@ -1,0 +1,33 @@
+import sys
+from fractions import Fraction
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).parent))
+
+import fakeack as fa  # noqa: E402
+
+PAPER = dict(A=1.2, C=0.7, Q=0.8, R=0.8)
+PAPER_LAM = 0.5
+PAPER_RATIO = Fraction(1, 7)
+
+
+@pytest.fixture
+def paper():
+    return fa.LinearSystem(**PAPER)
+
+
+def random_system(rng, n, m=None, unstable=True):
+    """A random system with (A, C) observable and Q > 0; spectral radius up to 1.3."""
+    m = m or max(1, n // 2)
+    A = rng.standard_normal((n, n))
+    rho = max(abs(np.linalg.eigvals(A)))
+    A *= (rng.uniform(0.5, 1.3) if unstable else rng.uniform(0.3, 0.95)) / rho
+    C = rng.standard_normal((m, n))
+    B = rng.standard_normal((n, n))
+    Q = B @ B.T / n + 0.1 * np.eye(n)
+    D = rng.standard_normal((m, m))
+    R = D @ D.T / m + 0.2 * np.eye(m)
+    return A, C, Q, R

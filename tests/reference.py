@@ -1,0 +1,105 @@
+"""Independent reference implementations for the tests: plain numpy/scipy, written from the
+paper's rules (and ERRATA), sharing no code with fakeack."""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+
+def pbar_scipy(A, C, Q, R):
+    """Posterior steady-state covariance from scipy's DARE (the dual, control form)."""
+    A, C, Q, R = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (A, C, Q, R))
+    prior = sla.solve_discrete_are(A.T, C.T, Q, R)
+    S = C @ prior @ C.T + R
+    return prior - prior @ C.T @ np.linalg.solve(S, C @ prior)
+
+
+def traces(A, Q, pbar, n):
+    """[Tr h^i(P̄)] for i = 0..n by plain iteration."""
+    A, Q = np.atleast_2d(A), np.atleast_2d(Q)
+    X = np.array(pbar, dtype=float)
+    out = [np.trace(X)]
+    for _ in range(n):
+        X = A @ X @ A.T + Q
+        out.append(np.trace(X))
+    return np.array(out)
+
+
+def explore_chain(lam, z0, r, t, mu=1.0):
+    """Breadth-first exploration of the attack chain from (0, 0) by rules 1)-4) (ERRATA item 3:
+    the first r of every t flags are blocked). Returns (states list, dense row-stochastic T)."""
+    a = 1.0 - lam
+
+    def succ(tau, sigma):
+        if tau == 0 or tau % z0 != 0:
+            return [((0, sigma), lam), ((tau + 1, sigma), a)]
+        if sigma < r:
+            return [((0, sigma + 1), lam), ((tau + 1, sigma + 1), a)]
+        return [((0, (sigma + 1) % t), 1.0)]
+
+    index = {(0, 0): 0}
+    order = [(0, 0)]
+    i = 0
+    while i < len(order):
+        for (s, _) in succ(*order[i]):
+            if s not in index:
+                index[s] = len(order)
+                order.append(s)
+        i += 1
+    n = len(order)
+    T = np.zeros((n, n))
+    for s, k in index.items():
+        for (d, p) in succ(*s):
+            T[k, index[d]] += p
+    return order, T
+
+
+def stationary_dense(T):
+    """Stationary law of a dense row-stochastic matrix: solve pi (T - I) = 0 with sum(pi) = 1."""
+    n = T.shape[0]
+    M = T.T - np.eye(n)
+    M[-1, :] = 1.0
+    b = np.zeros(n)
+    b[-1] = 1.0
+    return np.linalg.solve(M, b)
+
+
+def online_chain(lam, z0, mu):
+    """Holding-time chain of the unattacked online schedule with variable memory (ERRATA item 2):
+    a flag at tau = z0 with probability mu, always at tau = z0 + 1. Returns (T, flag_prob per state)."""
+    a = 1.0 - lam
+    n = z0 + 2
+    T = np.zeros((n, n))
+    flag = np.zeros(n)
+    for tau in range(n):
+        f = 0.0 if tau < z0 else (mu if tau == z0 else 1.0)
+        flag[tau] = f
+        if f > 0:
+            T[tau, 0] += f  # high power next step: arrival
+        if f < 1:
+            T[tau, 0] += (1 - f) * lam
+            if tau + 1 < n:
+                T[tau, tau + 1] += (1 - f) * a
+    return T, flag
+
+
+def offline_direct(tr, lam, pattern, periods=60):
+    """Period average of E Tr P_k under a periodic 0/1 pattern, by propagating the tau law until
+    it is periodic-stationary."""
+    a = 1.0 - lam
+    law = np.zeros(len(tr))
+    law[0] = 1.0
+    for _ in range(periods):
+        total = 0.0
+        for g in pattern:
+            if g:
+                law = np.zeros(len(tr))
+                law[0] = 1.0
+            else:
+                new = np.zeros(len(tr))
+                new[0] = lam * law.sum()
+                new[1:] = a * law[:-1]
+                law = new
+            total += law @ tr
+    return total / len(pattern)
