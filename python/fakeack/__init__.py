@@ -6,7 +6,15 @@ Schedule for Remote State Estimation", with the corrections listed in the README
 """
 
 from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError
-from .attack import attack_chain, balance_residual, j_attack, num_states, stationary_distribution
+from .attack import (
+    attack_chain,
+    balance_residual,
+    general_attack_chain,
+    j_attack,
+    num_states,
+    stationary_distribution,
+    stationary_gth,
+)
 from .schedules import (
     OnlineDesign,
     design_online,
@@ -18,10 +26,34 @@ from .schedules import (
     online_high_power_rate,
 )
 from .system import LinearSystem
+from .threshold import (
+    BetaBar,
+    BetaSweep,
+    Decision,
+    MaskSearch,
+    beta_bar,
+    beta_sweep,
+    choose_schedule,
+    j_attack_limit,
+    j_attack_pattern,
+    worst_mask,
+)
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "BetaBar",
+    "BetaSweep",
+    "Decision",
+    "MaskSearch",
+    "beta_bar",
+    "beta_sweep",
+    "choose_schedule",
+    "general_attack_chain",
+    "j_attack_limit",
+    "j_attack_pattern",
+    "stationary_gth",
+    "worst_mask",
     "MAX_BUILD_STATES",
     "MAX_VECTOR_STATES",
     "ConvergenceError",

@@ -13,6 +13,8 @@ from .system import _core
 
 __all__ = [
     "attack_chain",
+    "general_attack_chain",
+    "stationary_gth",
     "balance_residual",
     "j_attack",
     "num_states",
@@ -117,7 +119,7 @@ def balance_residual(lam: Any, z0: Any, r: Any, t: Any, pi: Any) -> float:
     return _fakeack.balance_residual(lam, z0, r, t, arr)
 
 
-def j_attack(s: Any, lam: Any, z0: Any, r: Any, t: Any) -> float:
+def j_attack(s: Any, lam: Any, z0: Any, r: Any, t: Any, mu: Any = 1.0) -> float:
     r"""Cost :math:`J(\tilde\theta_{\mathrm{on}})` under the fake-ACK attack (Sec. IV-B, eq. (14)).
 
     :math:`J = \sum_{\mathcal S}\Pi^\star(\tau,\sigma)\,\mathrm{Tr}\,h^\tau(\bar P)`, summed per
@@ -132,6 +134,12 @@ def j_attack(s: Any, lam: Any, z0: Any, r: Any, t: Any) -> float:
         The process and sensor.
     lam, z0, r, t
         As in :func:`attack_chain` (``r = 0`` is the unattacked online schedule).
+    mu : float, optional
+        Memory mix :math:`\mu \in [0, 1]` as in :func:`fakeack.j_online`. For ``mu < 1`` the chain
+        also needs the zeros in the memory since its last reset (the paper says its results cover
+        this case but never writes it down); the cost then comes from the renewal form of
+        :func:`fakeack.j_attack_pattern`, checked against that full chain
+        (:func:`general_attack_chain`) in the tests. Costs :math:`O(r^2)` for ``mu < 1``.
 
     Returns
     -------
@@ -140,4 +148,93 @@ def j_attack(s: Any, lam: Any, z0: Any, r: Any, t: Any) -> float:
     """
     core = _core(s)
     lam, z0, r, t = _check(lam, z0, r, t)
-    return core.j_attack(lam, z0, r, t)
+    mu = as_probability("mu", mu, closed=True)
+    return core.j_attack(lam, z0, r, t, mu)
+
+
+def as_mask(mask: Any) -> list[bool]:
+    """A non-empty 1-D 0/1 (or bool) blocking mask as a list of bools."""
+    arr = np.asarray(mask)
+    if arr.ndim != 1 or arr.size == 0:
+        raise ValueError(f"mask must be a non-empty 1-D sequence of 0/1, got shape {arr.shape}")
+    if arr.dtype.kind not in "biu" and not (arr.dtype.kind == "f" and np.all(np.isin(arr, (0, 1)))):
+        raise TypeError(f"mask must hold 0/1 or booleans, got dtype {arr.dtype}")
+    if not np.all(np.isin(arr, (0, 1))):
+        raise ValueError("mask must hold only 0 and 1")
+    return [bool(x) for x in arr]
+
+
+def general_attack_chain(
+    lam: Any, z0: Any, mask: Any, mu: Any = 1.0
+) -> tuple[np.ndarray, sp.csr_array]:
+    r"""The attack chain in full generality: any memory mix :math:`\mu` and any blocking mask.
+
+    States are :math:`(\tau, z, \sigma)`: holding time, zeros in the detector's memory since its
+    last reset, attacker counter. Built by breadth-first exploration of the protocol's rules from
+    the paper's initial state, so it shares no formula with the structured solvers and serves as
+    their independent check.
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability at low power.
+    z0 : int
+        Memory length.
+    mask : sequence of 0/1
+        ``mask[sigma] == 1`` blocks the flag-ACK counted sigma in each period of ``len(mask)``.
+        ``[1]*r + [0]*(t-r)`` is the paper's attack. A mask of all ones is refused (the chain is
+        infinite; its cost is :func:`fakeack.j_max`).
+    mu : float, optional
+        Probability of the z0-bit memory at each step.
+
+    Returns
+    -------
+    states : numpy.ndarray
+        ``(n, 3)`` int64 ``[tau, zeros, sigma]`` in exploration order.
+    T : scipy.sparse.csr_array
+        Row-stochastic transition matrix.
+    """
+    lam = as_probability("lam", lam)
+    z0 = as_int("z0", z0, minimum=1)
+    mu = as_probability("mu", mu, closed=True)
+    m = as_mask(mask)
+    states, indptr, indices, data = _fakeack.general_chain(lam, z0, mu, m)
+    n = states.shape[0]
+    return states, sp.csr_array((data, indices, indptr), shape=(n, n))
+
+
+def stationary_gth(T: Any) -> np.ndarray:
+    """Stationary law of any irreducible row-stochastic sparse or dense matrix.
+
+    Grassmann-Taksar-Heyman state reduction: no subtractions, so every entry is accurate to a few
+    ulps even when it is tiny. Sparse fill-in makes it slow for large, densely coupled chains.
+
+    Parameters
+    ----------
+    T : array_like or scipy.sparse matrix
+        Square, non-negative, rows summing to 1.
+
+    Returns
+    -------
+    numpy.ndarray
+        The stationary vector, summing to 1.
+
+    References
+    ----------
+    .. [1] W. K. Grassmann, M. I. Taksar, D. P. Heyman, "Regenerative analysis and steady state
+       distributions for Markov chains", Operations Research 33(5), 1985.
+    """
+    M = sp.csr_array(T)
+    if M.ndim != 2 or M.shape[0] != M.shape[1] or M.shape[0] == 0:
+        raise ValueError(f"T must be a non-empty square matrix, got shape {M.shape}")
+    M.sum_duplicates()
+    M.sort_indices()
+    data = np.asarray(M.data, dtype=np.float64)
+    if not np.all(np.isfinite(data)) or np.any(data < 0):
+        raise ValueError("T must be finite and non-negative")
+    rows = np.asarray(M.sum(axis=1)).ravel()
+    if np.max(np.abs(rows - 1.0)) > 1e-10:
+        raise ValueError("T must be row-stochastic (rows summing to 1)")
+    return _fakeack.stationary_gth(
+        M.indptr.astype(np.int64), M.indices.astype(np.int64), data
+    )

@@ -10,8 +10,9 @@ use pyo3::prelude::*;
 
 use crate::chain::{AttackChain, Csr};
 use crate::error::Error;
+use crate::pattern::{self, Segments};
 use crate::riccati::LinearSystem;
-use crate::{schedules, stationary};
+use crate::{general, schedules, stationary, sweep};
 
 create_exception!(
     _fakeack,
@@ -121,14 +122,128 @@ impl PySystem {
         Ok(py.detach(|| schedules::j_max(&self.inner, lam))?)
     }
 
-    fn j_attack(&self, py: Python<'_>, lam: f64, z0: u64, r: u64, t: u64) -> PyResult<f64> {
+    fn j_attack(
+        &self,
+        py: Python<'_>,
+        lam: f64,
+        z0: u64,
+        r: u64,
+        t: u64,
+        mu: f64,
+    ) -> PyResult<f64> {
         let chain = AttackChain::new(lam, z0, r, t)?;
-        let n = z0 as u128 * (r as u128 + 1);
         py.detach(|| {
-            let w = self
-                .inner
-                .checked_weighted_traces(1.0 - lam, n, "(z0, r)")?;
-            stationary::j_attack(&chain, &w)
+            if mu == 1.0 {
+                // The structured stationary law of the (τ, σ) chain, summed per segment.
+                let n = z0 as u128 * (r as u128 + 1);
+                let w = self
+                    .inner
+                    .checked_weighted_traces(1.0 - lam, n, "(z0, r)")?;
+                stationary::j_attack(&chain, &w)
+            } else {
+                let seg = Segments::for_system(&self.inner, lam, z0, mu, r)?;
+                Ok(seg.j_first_r(r as usize, t as usize))
+            }
+        })
+        .map_err(Into::into)
+    }
+
+    fn j_attack_pattern(
+        &self,
+        py: Python<'_>,
+        lam: f64,
+        z0: u64,
+        mu: f64,
+        mask: Vec<bool>,
+    ) -> PyResult<f64> {
+        py.detach(|| {
+            let kmax = pattern::longest_cyclic_run(&mask).min(mask.len().saturating_sub(1));
+            let seg = Segments::for_system(&self.inner, lam, z0, mu, kmax as u64)?;
+            seg.j_mask(&mask)
+        })
+        .map_err(Into::into)
+    }
+
+    fn j_attack_limit(
+        &self,
+        py: Python<'_>,
+        lam: f64,
+        z0: u64,
+        mu: f64,
+        beta: f64,
+    ) -> PyResult<f64> {
+        py.detach(|| {
+            let seg = Segments::for_system(&self.inner, lam, z0, mu, 0)?;
+            let jmax = schedules::j_max(&self.inner, lam)?;
+            pattern::j_limit(&seg, lam, jmax, beta)
+        })
+        .map_err(Into::into)
+    }
+
+    /// (r, t, beta, j) for every reduced r/t with t <= t_max, sorted by beta.
+    #[allow(clippy::type_complexity)]
+    fn beta_sweep<'py>(
+        &self,
+        py: Python<'py>,
+        lam: f64,
+        z0: u64,
+        mu: f64,
+        t_max: u64,
+    ) -> PyResult<(
+        Bound<'py, PyArray1<u32>>,
+        Bound<'py, PyArray1<u32>>,
+        Bound<'py, PyArray1<f64>>,
+        Bound<'py, PyArray1<f64>>,
+    )> {
+        let sw = py.detach(|| {
+            let seg = Segments::for_system(&self.inner, lam, z0, mu, t_max.saturating_sub(1))?;
+            sweep::sweep(&seg, t_max)
+        })?;
+        Ok((
+            sw.r.into_pyarray(py),
+            sw.t.into_pyarray(py),
+            sw.beta.into_pyarray(py),
+            sw.j.into_pyarray(py),
+        ))
+    }
+
+    /// (first (r, t) with J >= j_ref or None, the large-period threshold, J_max).
+    #[allow(clippy::type_complexity)]
+    fn beta_bar(
+        &self,
+        py: Python<'_>,
+        lam: f64,
+        z0: u64,
+        mu: f64,
+        t_max: u64,
+        j_ref: f64,
+    ) -> PyResult<(Option<(u32, u32)>, f64, f64)> {
+        py.detach(|| {
+            let seg = Segments::for_system(&self.inner, lam, z0, mu, t_max.saturating_sub(1))?;
+            let jmax = schedules::j_max(&self.inner, lam)?;
+            let first = sweep::first_crossing(&seg, t_max, j_ref)?;
+            Ok::<_, Error>((
+                first,
+                pattern::beta_limit_threshold(&seg, lam, jmax, j_ref),
+                jmax,
+            ))
+        })
+        .map_err(Into::into)
+    }
+
+    /// (worst mask, its J, J of the consecutive mask).
+    fn worst_mask(
+        &self,
+        py: Python<'_>,
+        lam: f64,
+        z0: u64,
+        mu: f64,
+        t: usize,
+        blocked: usize,
+    ) -> PyResult<(Vec<bool>, f64, f64)> {
+        py.detach(|| {
+            let seg = Segments::for_system(&self.inner, lam, z0, mu, t.saturating_sub(1) as u64)?;
+            pattern::worst_mask(&seg, t, blocked)
         })
         .map_err(Into::into)
     }
@@ -180,13 +295,38 @@ fn attack_chain<'py>(
     let states = Array2::from_shape_vec((n, 2), flat)
         .map_err(|e| PyValueError::new_err(e.to_string()))?
         .into_pyarray(py);
+    Ok(csr_out(py, states, csr))
+}
+
+/// (states (n, 3) of [tau, zeros, sigma], indptr, indices, data): the general chain.
+#[pyfunction]
+fn general_chain<'py>(
+    py: Python<'py>,
+    lam: f64,
+    z0: u64,
+    mu: f64,
+    mask: Vec<bool>,
+) -> PyResult<CsrArrays<'py>> {
+    let (states, csr) = py.detach(|| general::build(lam, z0, mu, &mask))?;
+    let n = states.len();
+    let flat: Vec<i64> = states
+        .iter()
+        .flat_map(|&(tau, z, sigma)| [tau as i64, z as i64, sigma as i64])
+        .collect();
+    let states = Array2::from_shape_vec((n, 3), flat)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?
+        .into_pyarray(py);
+    Ok(csr_out(py, states, csr))
+}
+
+fn csr_out<'py>(py: Python<'py>, states: Bound<'py, PyArray2<i64>>, csr: Csr) -> CsrArrays<'py> {
     let to_i64 = |v: Vec<usize>| v.into_iter().map(|x| x as i64).collect::<Vec<_>>();
-    Ok((
+    (
         states,
         to_i64(csr.indptr).into_pyarray(py),
         to_i64(csr.indices).into_pyarray(py),
         csr.data.into_pyarray(py),
-    ))
+    )
 }
 
 #[pyfunction]
@@ -271,6 +411,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(num_states, m)?)?;
     m.add_function(wrap_pyfunction!(attack_chain, m)?)?;
     m.add_function(wrap_pyfunction!(stationary_structured, m)?)?;
+    m.add_function(wrap_pyfunction!(general_chain, m)?)?;
     m.add_function(wrap_pyfunction!(stationary_gth, m)?)?;
     m.add_function(wrap_pyfunction!(balance_residual, m)?)?;
     m.add("MAX_BUILD_STATES", crate::chain::MAX_BUILD_STATES as u64)?;

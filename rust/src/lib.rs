@@ -10,10 +10,14 @@
 
 pub mod chain;
 pub mod error;
+pub mod general;
 pub mod montecarlo;
+pub mod pattern;
 pub mod riccati;
+pub mod rng;
 pub mod schedules;
 pub mod stationary;
+pub mod sweep;
 
 #[cfg(feature = "python")]
 mod bindings;

@@ -1,0 +1,276 @@
+"""The attacker threshold: β sweeps, β̄, the sensor's decision, general attack patterns."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from ._validate import as_fraction, as_int, as_probability, as_ratio
+from .attack import as_mask
+from .schedules import design_online, j_offline, j_online
+from .system import _core
+
+__all__ = [
+    "BetaBar",
+    "BetaSweep",
+    "Decision",
+    "MaskSearch",
+    "beta_bar",
+    "beta_sweep",
+    "choose_schedule",
+    "j_attack_limit",
+    "j_attack_pattern",
+    "worst_mask",
+]
+
+
+def _t_max(t_max: Any) -> int:
+    return as_int("t_max", t_max, minimum=2)
+
+
+def j_attack_pattern(s: Any, lam: Any, z0: Any, mask: Any, mu: Any = 1.0) -> float:
+    r"""Cost under any periodic blocking pattern of the attacker's flag counter.
+
+    Generalises Algorithm 1: ``mask[sigma] == 1`` blocks the flag-ACK counted ``sigma`` in each
+    period of ``len(mask)`` flags (``[1]*r + [0]*(t-r)`` is the paper's "first r of t").
+
+    The renewal form: after each arrival the memory walk flags before the next arrival with
+    probability :math:`u = a^{z_0}(\mu + (1-\mu)a)`; k blocked flags in a row put it in segment k.
+    Balancing the flag rate over counter levels gives
+    :math:`J = \sum_\sigma\sum_k \tilde c_{\sigma-k} W_k / \sum_\sigma\sum_k \tilde c_{\sigma-k} M_k`,
+    where :math:`\tilde c_j = 1-u` if the flag before level j is blocked, else 1, and
+    :math:`W_k` (:math:`M_k`) sums :math:`a^\tau\mathrm{Tr}\,h^\tau(\bar P)` (:math:`a^\tau`) over
+    segment k (README, model notes). Checked against :func:`fakeack.general_attack_chain`.
+
+    Parameters
+    ----------
+    s : LinearSystem
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length.
+    mask : sequence of 0/1
+        One period of the blocking pattern; not all ones (that is :func:`fakeack.j_max`).
+    mu : float, optional
+        Probability of the z0-bit memory at each step.
+    """
+    core = _core(s)
+    lam = as_probability("lam", lam)
+    z0 = as_int("z0", z0, minimum=1)
+    mu = as_probability("mu", mu, closed=True)
+    m = as_mask(mask)
+    if all(m):
+        raise ValueError("mask blocks every flag-ACK; its cost is fakeack.j_max(s, lam)")
+    return core.j_attack_pattern(lam, z0, mu, m)
+
+
+def j_attack_limit(s: Any, lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> float:
+    r"""Cost in the large-period limit :math:`r, t \to \infty`, :math:`r/t \to \beta`.
+
+    The attacker blocks long runs of flags; the process alternates between the all-blocked regime
+    (cost :math:`J_{\max}`, flag rate :math:`f_{\mathrm{blk}} = \lambda u/(1-u)`) and the unattacked
+    one (cost :math:`J_{\mathrm{on}}`, flag rate :math:`f_{\mathrm{on}}`), each for a share of the
+    flags, so each for a share of time proportional to flags over rate:
+
+    .. math::
+       J_\infty(\beta) = \frac{\beta J_{\max}/f_{\mathrm{blk}} + (1-\beta) J_{\mathrm{on}}/f_{\mathrm{on}}}
+                              {\beta/f_{\mathrm{blk}} + (1-\beta)/f_{\mathrm{on}}}.
+
+    This is the supremum of :math:`J(kr, kt)` over repetitions k of a pattern with budget β, so it
+    is the worst an attacker with budget β can do with the paper's consecutive pattern.
+
+    Parameters
+    ----------
+    beta : float or Fraction
+        Attacker budget :math:`\beta \in [0, 1]`.
+
+    Returns
+    -------
+    float
+        ``inf`` for :math:`\beta > 0` when :math:`J_{\max}` is infinite.
+    """
+    core = _core(s)
+    lam = as_probability("lam", lam)
+    z0 = as_int("z0", z0, minimum=1)
+    mu = as_probability("mu", mu, closed=True)
+    b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
+    return core.j_attack_limit(lam, z0, mu, b)
+
+
+@dataclass(frozen=True)
+class BetaSweep:
+    """:math:`J(\\tilde\\theta_{on})` at every β = r/t in lowest terms, t <= t_max, sorted by β."""
+
+    r: np.ndarray
+    """Blocked flag-ACKs per period (uint32)."""
+    t: np.ndarray
+    """Period in flag-ACKs (uint32)."""
+    beta: np.ndarray
+    """r / t."""
+    j_attack: np.ndarray
+    """Attacked cost at each fraction."""
+    j_offline: float
+    """Cost of the optimal offline schedule at the same energy."""
+    j_online: float
+    """Unattacked online cost."""
+    z0: int
+    mu: float
+    lam: float
+    ratio: Fraction
+
+    def __len__(self) -> int:
+        return len(self.r)
+
+
+def _design(s: Any, lam: Any, ratio: Any) -> tuple[float, Fraction, int, float, float, float]:
+    lam_f = as_probability("lam", lam)
+    r = as_ratio("ratio", ratio)
+    z0, mu = design_online(lam, r)
+    return lam_f, r, z0, mu, j_offline(s, lam_f, r), j_online(s, lam_f, z0, mu)
+
+
+def beta_sweep(s: Any, lam: Any, ratio: Any, t_max: Any = 1000) -> BetaSweep:
+    r"""The attacked cost at every :math:`\beta = r/t` in lowest terms, :math:`1 \le r < t \le t_{\max}`.
+
+    The online schedule is :func:`fakeack.design_online` ``(lam, ratio)``. Each attack period is a
+    renewal cycle, so :math:`J(r,t) = (t W_0 + a_r)/(t M_0 + b_r)` with :math:`a_r, b_r` accumulated
+    once per r; fractions come in increasing order from the Farey sequence. :math:`t_{\max} = 10^4`
+    (about :math:`3\cdot10^7` fractions) takes a few seconds.
+
+    Parameters
+    ----------
+    s : LinearSystem
+    lam : float
+        Arrival probability at low power.
+    ratio : Fraction
+        Energy ratio p/q (from :func:`fakeack.energy_ratio`).
+    t_max : int, optional
+        Largest period (default 1000).
+
+    Returns
+    -------
+    BetaSweep
+    """
+    core = _core(s)
+    lam_f, r, z0, mu, joff, jon = _design(s, lam, ratio)
+    t_max = _t_max(t_max)
+    rr, tt, beta, j = core.beta_sweep(lam_f, z0, mu, t_max)
+    return BetaSweep(rr, tt, beta, j, joff, jon, z0, mu, lam_f, r)
+
+
+@dataclass(frozen=True)
+class BetaBar:
+    """The attacker threshold in its two definitions (see :func:`beta_bar`)."""
+
+    finite: Fraction | None
+    """Smallest r/t (t <= t_max, lowest terms) with J_attack >= J_offline; None if none."""
+    limit: float
+    """β at which the large-period limit J_∞(β) equals J_offline."""
+    t_max: int
+    j_offline: float
+    j_online: float
+    j_max: float
+    z0: int
+    mu: float
+
+
+def beta_bar(s: Any, lam: Any, ratio: Any, t_max: Any = 60) -> BetaBar:
+    r"""The threshold :math:`\bar\beta` above which the sensor should drop ACKs (Sec. IV-C).
+
+    The paper defines :math:`\bar\beta` by
+    :math:`J(\tilde\theta_{on})_{\beta=\bar\beta} = J(\theta^\star_{off})`, but J is not a function of β alone: the run length r matters, and repeating a pattern
+    (kr of kt) hurts more as k grows. Two well-defined versions are returned:
+
+    * ``finite``: the smallest :math:`\beta = r/t` in lowest terms with :math:`t \le t_{\max}` and
+      :math:`J(r,t) \ge J_{\mathrm{off}}`;
+    * ``limit``: the root of :math:`J_\infty(\beta) = J_{\mathrm{off}}` for the large-period limit
+      (:func:`j_attack_limit`), in closed form
+      :math:`\bar\beta = G/(G+L)`, :math:`G = (J_{\mathrm{off}} - J_{\mathrm{on}})/f_{\mathrm{on}}`,
+      :math:`L = (J_{\max} - J_{\mathrm{off}})/f_{\mathrm{blk}}`. It is the threshold against the
+      worst attacker with budget β, and the one :func:`choose_schedule` uses.
+    """
+    core = _core(s)
+    lam_f, r, z0, mu, joff, jon = _design(s, lam, ratio)
+    t_max = _t_max(t_max)
+    first, limit, jmax = core.beta_bar(lam_f, z0, mu, t_max, joff)
+    finite = None if first is None else Fraction(first[0], first[1])
+    return BetaBar(finite, limit, t_max, joff, jon, jmax, z0, mu)
+
+
+@dataclass(frozen=True)
+class Decision:
+    """The sensor's choice against an attacker of budget β."""
+
+    schedule: str
+    """"online" or "offline"."""
+    beta: float
+    beta_bar: float
+    """The large-period threshold used for the decision."""
+    j_online_attacked: float
+    """Worst-case online cost at budget β (large-period limit)."""
+    j_offline: float
+    j_online: float
+    z0: int
+    mu: float
+
+
+def choose_schedule(s: Any, lam: Any, ratio: Any, beta: Any) -> Decision:
+    r"""Keep the online schedule or switch to the offline one (Sec. IV-C's rule).
+
+    .. math::
+       \tilde\theta = \theta_{\mathrm{on}} \text{ if } \beta < \bar\beta, \quad
+       \theta^\star_{\mathrm{off}} \text{ otherwise},
+
+    with :math:`\bar\beta` the large-period threshold of :func:`beta_bar`, i.e. against the worst
+    attacker that blocks a fraction β of the flag-ACKs; the costs compared are
+    :func:`j_attack_limit` at β and :func:`fakeack.j_offline`.
+
+    Parameters
+    ----------
+    s : LinearSystem
+    lam : float
+    ratio : Fraction
+        Energy ratio p/q.
+    beta : float or Fraction
+        The attacker's (estimated) budget in [0, 1].
+    """
+    lam_f, r, z0, mu, joff, jon = _design(s, lam, ratio)
+    b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
+    jatt = j_attack_limit(s, lam_f, z0, b, mu)
+    bb = _core(s).beta_bar(lam_f, z0, mu, 2, joff)[1]
+    return Decision("online" if jatt < joff else "offline", b, bb, jatt, joff, jon, z0, mu)
+
+
+@dataclass(frozen=True)
+class MaskSearch:
+    """Result of :func:`worst_mask`."""
+
+    mask: np.ndarray
+    """The most damaging blocking pattern found (0/1, length t)."""
+    j: float
+    j_consecutive: float
+    """Cost of the consecutive pattern (the paper's "first r of t")."""
+    consecutive_is_worst: bool
+
+
+def worst_mask(s: Any, lam: Any, z0: Any, t: Any, blocked: Any, mu: Any = 1.0) -> MaskSearch:
+    """Exhaustive search for the most damaging mask with ``blocked`` of ``t`` flags blocked.
+
+    Tests whether blocking consecutively, the paper's choice after the optimal-DoS result it cites,
+    is the worst pattern for this system. ``t <= 24`` (all :math:`\\binom{t}{blocked}` masks).
+    """
+    core = _core(s)
+    lam = as_probability("lam", lam)
+    z0 = as_int("z0", z0, minimum=1)
+    t = as_int("t", t, minimum=1)
+    if t > 24:
+        raise ValueError(f"t must be at most 24 for an exhaustive search, got {t}")
+    blocked = as_int("blocked", blocked, minimum=0)
+    if blocked >= t:
+        raise ValueError(f"blocked must be smaller than t = {t}, got {blocked}")
+    mu = as_probability("mu", mu, closed=True)
+    mask, j, jc = core.worst_mask(lam, z0, mu, t, blocked)
+    return MaskSearch(np.array(mask, dtype=np.int64), j, jc, j <= jc * (1 + 1e-12))

@@ -1,0 +1,346 @@
+//! Attacked cost for any periodic blocking mask and any memory mix μ, by renewal structure.
+//!
+//! After a *fresh start* (an arrival, τ = 0) the detector's memory fills with zeros; a flag-ACK is
+//! due after z0 losses with probability μ, else after z0 + 1. The chance that a flag comes before
+//! the next arrival is u = a^z0 (μ + (1-μ) a), the same after every memory reset. A blocked flag
+//! resets the memory but not τ, so k blocked flags in a row put the walk in *segment k*, where
+//! τ = k z0 + i + z: i of the k intervals were long (binomial, weight C(k,i) μ^(k-i) (1-μ)^i) and z
+//! counts zeros since the last reset (z = z0 + 1 carries weight 1 - μ).
+//!
+//! Balancing the flag rate F across counter levels σ gives the stationary law
+//! π(state in level σ, segment k) = (F/u) c̃(σ-k) a^τ (path weight), with c̃(j) = 1 - u when the
+//! flag before level j is blocked and 1 otherwise; segment k exists in level σ iff the k flags
+//! before it were all blocked. So J = N/D with N = Σ_σ Σ_k c̃(σ-k) W_k and D the same with
+//! M_k, where W_k (M_k) sums a^τ Tr h^τ(P̄) (a^τ) over segment k. `stationary::structured` is
+//! the μ = 1, first-r-of-t case written out state by state.
+
+use crate::error::{check_lam, check_mu, Error, Result};
+use crate::riccati::LinearSystem;
+
+/// Largest segment index for μ < 1, where building the segments costs O(kmax²).
+pub const MAX_SEGMENTS_MIXED: u64 = 200_000;
+
+/// Segment sums of one fresh-start walk.
+#[derive(Debug, Clone)]
+pub struct Segments {
+    /// u = a^z0 (μ + (1-μ) a): probability of a flag before the next arrival.
+    pub u: f64,
+    /// W_k: segment k's sum of a^τ Tr h^τ(P̄) (times the path weights).
+    pub w: Vec<f64>,
+    /// M_k: segment k's sum of a^τ (times the path weights): expected steps spent there.
+    pub m: Vec<f64>,
+}
+
+/// Highest τ that segments 0..=kmax reach: kmax (z0 + 1) + z0 + 1.
+pub fn tau_needed(z0: u64, kmax: u64) -> u128 {
+    (kmax as u128 + 1) * (z0 as u128 + 1)
+}
+
+fn prefix(v: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(v.len() + 1);
+    let mut acc = 0.0;
+    out.push(0.0);
+    for x in v {
+        acc += x;
+        out.push(acc);
+    }
+    out
+}
+
+impl Segments {
+    /// Segments 0..=kmax from the weighted traces `wtr[τ] = a^τ Tr h^τ(P̄)`,
+    /// τ = 0..=[`tau_needed`].
+    pub fn new(wtr: &[f64], lam: f64, z0: u64, mu: f64, kmax: u64) -> Result<Self> {
+        check_lam(lam)?;
+        check_mu(mu)?;
+        if z0 < 1 {
+            return Err(Error::invalid("z0", "must be at least 1"));
+        }
+        let need = tau_needed(z0, kmax) as usize + 1;
+        if wtr.len() < need {
+            return Err(Error::invalid("w", format!("needs {need} weighted traces")));
+        }
+        let a = 1.0 - lam;
+        let u = a.powf(z0 as f64) * (mu + (1.0 - mu) * a);
+        let mass: Vec<f64> = (0..need).map(|tau| a.powf(tau as f64)).collect();
+        let (w, m) = (
+            segment_sums(&wtr[..need], z0, mu, kmax),
+            segment_sums(&mass, z0, mu, kmax),
+        );
+        Ok(Segments { u, w, m })
+    }
+
+    /// Segments 0..=kmax for a system, computing the weighted traces it needs (refused before
+    /// allocating if too many).
+    pub fn for_system(sys: &LinearSystem, lam: f64, z0: u64, mu: f64, kmax: u64) -> Result<Self> {
+        check_lam(lam)?;
+        check_mu(mu)?;
+        if z0 < 1 {
+            return Err(Error::invalid("z0", "must be at least 1"));
+        }
+        if mu < 1.0 && kmax > MAX_SEGMENTS_MIXED {
+            return Err(Error::TooLarge {
+                arg: "r (with mu < 1)".into(),
+                requested: kmax as u128,
+                limit: MAX_SEGMENTS_MIXED as u128,
+            });
+        }
+        let w = sys.checked_weighted_traces(1.0 - lam, tau_needed(z0, kmax), "r")?;
+        Segments::new(&w, lam, z0, mu, kmax)
+    }
+
+    /// J of the walk with a blocking mask over the attacker's counter (true = blocked).
+    /// Every mask must leave at least one flag through.
+    pub fn j_mask(&self, mask: &[bool]) -> Result<f64> {
+        let t = mask.len();
+        if t == 0 {
+            return Err(Error::invalid("mask", "must not be empty"));
+        }
+        if mask.iter().all(|&b| b) {
+            return Err(Error::invalid(
+                "mask",
+                "blocks every flag-ACK: that is J_max, see schedules::j_max",
+            ));
+        }
+        let run = longest_cyclic_run(mask);
+        if self.w.len() <= run {
+            return Err(Error::invalid(
+                "mask",
+                format!("needs segments up to {run}"),
+            ));
+        }
+        let c_tilde = |j: usize| {
+            if mask[(j + t - 1) % t] {
+                1.0 - self.u
+            } else {
+                1.0
+            }
+        };
+        let (mut num, mut den) = (0.0, 0.0);
+        for sigma in 0..t {
+            // Segment k lives in level σ iff the k flags before σ were all blocked.
+            let mut k = 0;
+            // k < t always: the mask has an unblocked position, which ends the walk back.
+            loop {
+                let c = c_tilde((sigma + t - k) % t);
+                num += c * self.w[k];
+                den += c * self.m[k];
+                if !mask[(sigma + 2 * t - k - 1) % t] {
+                    break;
+                }
+                k += 1;
+            }
+        }
+        Ok(num / den)
+    }
+
+    /// Cumulative quantities for "block the first r of every t": with
+    /// `a_r = Σ_{σ=1..r} W_σ + (1-u) Σ_{k<r} (r-k) W_k - r W_0` (and `b_r` the same for M),
+    /// J(r, t) = (t W_0 + a_r) / (t M_0 + b_r). Returns (a_r, b_r) for r = 0..=rmax.
+    pub fn first_r_offsets(&self, rmax: usize) -> (Vec<f64>, Vec<f64>) {
+        let one_minus_u = 1.0 - self.u;
+        let run = |v: &[f64]| -> Vec<f64> {
+            let mut out = Vec::with_capacity(rmax + 1);
+            let (mut head, mut tail, mut partial) = (0.0, 0.0, 0.0);
+            // head = Σ_{σ=1..r} v_σ; tail = Σ_{k<r} (r-k) v_k; partial = Σ_{k<r} v_k.
+            for r in 0..=rmax {
+                out.push(head + one_minus_u * tail - r as f64 * v[0]);
+                partial += v[r];
+                tail += partial;
+                if r < rmax {
+                    head += v[r + 1];
+                }
+            }
+            out
+        };
+        (run(&self.w), run(&self.m))
+    }
+
+    /// J(r, t) for "block the first r of every t flag-ACKs".
+    pub fn j_first_r(&self, r: usize, t: usize) -> f64 {
+        let (a, b) = self.first_r_offsets(r);
+        (t as f64 * self.w[0] + a[r]) / (t as f64 * self.m[0] + b[r])
+    }
+}
+
+/// Segment sums Σ_i C(k,i) μ^(k-i) (1-μ)^i Z_k(k z0 + i) of a per-τ weight `v`, where
+/// Z_0(s) = Σ_{z=0..z0} v[s+z] + (1-μ) v[s+z0+1] and Z_k(s) = Z_0(s) - v[s] for k ≥ 1.
+fn segment_sums(v: &[f64], z0: u64, mu: f64, kmax: u64) -> Vec<f64> {
+    let z = z0 as usize;
+    let pre = prefix(v);
+    let zsum = |s: usize, k: usize| {
+        let first = if k == 0 { s } else { s + 1 };
+        pre[s + z + 1] - pre[first] + (1.0 - mu) * v[s + z + 1]
+    };
+    let mut out = Vec::with_capacity(kmax as usize + 1);
+    if mu == 1.0 {
+        for k in 0..=kmax as usize {
+            out.push(zsum(k * z, k));
+        }
+        return out;
+    }
+    // Binomial law of the number of long intervals, advanced one segment at a time.
+    let mut binom = vec![1.0];
+    for k in 0..=kmax as usize {
+        let total: f64 = binom
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                if *b == 0.0 {
+                    0.0
+                } else {
+                    b * zsum(k * z + i, k)
+                }
+            })
+            .sum();
+        out.push(total);
+        let mut next = vec![0.0; binom.len() + 1];
+        for (i, b) in binom.iter().enumerate() {
+            next[i] += mu * b;
+            next[i + 1] += (1.0 - mu) * b;
+        }
+        binom = next;
+    }
+    out
+}
+
+/// Longest run of `true` in the cyclic mask (mask.len() if all true).
+pub fn longest_cyclic_run(mask: &[bool]) -> usize {
+    let t = mask.len();
+    if mask.iter().all(|&b| b) {
+        return t;
+    }
+    let (mut best, mut cur) = (0, 0);
+    for i in 0..2 * t {
+        if mask[i % t] {
+            cur += 1;
+            best = best.max(cur);
+        } else {
+            cur = 0;
+        }
+    }
+    best
+}
+
+/// The most damaging mask with `blocked` of `t` flag-ACKs blocked (exhaustive, t <= 24), its J,
+/// and the J of the consecutive mask (the paper's "first r of t").
+pub fn worst_mask(seg: &Segments, t: usize, blocked: usize) -> Result<(Vec<bool>, f64, f64)> {
+    if !(1..=24).contains(&t) {
+        return Err(Error::invalid(
+            "t",
+            format!("must lie in 1..=24 for an exhaustive search, got {t}"),
+        ));
+    }
+    if blocked >= t {
+        return Err(Error::invalid(
+            "blocked",
+            format!("must be smaller than t = {t}, got {blocked}"),
+        ));
+    }
+    let to_mask = |bits: u32| (0..t).map(|i| bits >> i & 1 == 1).collect::<Vec<bool>>();
+    let consecutive = (1u32 << blocked) - 1;
+    let j_consecutive = seg.j_mask(&to_mask(consecutive))?;
+    let (mut best_bits, mut best_j) = (consecutive, j_consecutive);
+    if blocked > 0 {
+        // Gosper's hack: every t-bit word with `blocked` ones, in increasing order.
+        let mut bits = consecutive;
+        while bits < (1u32 << t) {
+            let j = seg.j_mask(&to_mask(bits))?;
+            if j > best_j * (1.0 + 1e-12) {
+                (best_bits, best_j) = (bits, j);
+            }
+            let c = bits & bits.wrapping_neg();
+            let r = bits + c;
+            bits = (((r ^ bits) >> 2) / c) | r;
+        }
+    }
+    Ok((to_mask(best_bits), best_j, j_consecutive))
+}
+
+/// J of the large-period limit r, t → ∞ with r/t → β: the time-weighted mix of the unattacked
+/// and the all-blocked regimes,
+/// J = [(1-β) W_0 + β (1-u) W_∞] / [(1-β) M_0 + β (1-u) M_∞], with M_∞ = 1/λ and
+/// W_∞ = J_max/λ (every flag blocked: the sensor never uses high power).
+pub fn j_limit(seg: &Segments, lam: f64, j_max: f64, beta: f64) -> Result<f64> {
+    if !(beta.is_finite() && (0.0..=1.0).contains(&beta)) {
+        return Err(Error::invalid(
+            "beta",
+            format!("must lie in [0, 1], got {beta}"),
+        ));
+    }
+    if beta == 0.0 {
+        return Ok(seg.w[0] / seg.m[0]);
+    }
+    if j_max.is_infinite() {
+        return Ok(f64::INFINITY);
+    }
+    let blk = beta * (1.0 - seg.u) / lam;
+    Ok(((1.0 - beta) * seg.w[0] + blk * j_max) / ((1.0 - beta) * seg.m[0] + blk))
+}
+
+/// The β at which [`j_limit`] equals `j_ref` (J_offline): β̄ = G / (G + L) with
+/// G = (J_ref - J_on) M_0 and L = (1-u)/λ (J_max - J_ref), the time-weighted gain of the
+/// unattacked and loss of the all-blocked regime. 0 when the online schedule does not beat
+/// `j_ref` even unattacked (or J_max is infinite); 1 when even J_max does not exceed it.
+pub fn beta_limit_threshold(seg: &Segments, lam: f64, j_max: f64, j_ref: f64) -> f64 {
+    let gain = j_ref * seg.m[0] - seg.w[0];
+    if gain <= 0.0 || j_max.is_infinite() {
+        return 0.0;
+    }
+    let loss = (1.0 - seg.u) / lam * (j_max - j_ref);
+    if loss <= 0.0 {
+        return 1.0;
+    }
+    gain / (gain + loss)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::chain::AttackChain;
+    use crate::stationary;
+
+    fn wtr(lam: f64, n: usize) -> Vec<f64> {
+        (0..=n)
+            .map(|i| (1.0 - lam).powi(i as i32) * (1.0 + 1.3f64.powi(i as i32)))
+            .collect()
+    }
+
+    #[test]
+    fn first_r_matches_structured_chain() {
+        for &(lam, z0, r, t) in &[
+            (0.5, 2u64, 1usize, 3usize),
+            (0.3, 3, 4, 7),
+            (0.8, 1, 0, 5),
+            (0.6, 2, 6, 13),
+        ] {
+            let w = wtr(lam, 200);
+            let seg = Segments::new(&w, lam, z0, 1.0, r as u64).unwrap();
+            let chain = AttackChain::new(lam, z0, r as u64, t as u64).unwrap();
+            let expect = stationary::j_attack(&chain, &w).unwrap();
+            let got = seg.j_first_r(r, t);
+            assert!((got - expect).abs() < 1e-13 * expect, "{got} vs {expect}");
+            let mask: Vec<bool> = (0..t).map(|i| i < r).collect();
+            let via_mask = seg.j_mask(&mask).unwrap();
+            assert!((via_mask - expect).abs() < 1e-13 * expect);
+        }
+    }
+
+    #[test]
+    fn mass_per_tau_is_one_when_all_blocked() {
+        // Σ_k M_k over all segments = Σ_τ a^τ = 1/λ for any μ.
+        for &mu in &[1.0, 0.4, 0.0] {
+            let lam = 0.3;
+            let seg = Segments::new(&wtr(lam, 2000), lam, 2, mu, 600).unwrap();
+            let total: f64 = seg.m.iter().sum();
+            assert!((total - 1.0 / lam).abs() < 1e-10, "{mu}: {total}");
+        }
+    }
+
+    #[test]
+    fn cyclic_runs() {
+        assert_eq!(longest_cyclic_run(&[true, false, true, true]), 3);
+        assert_eq!(longest_cyclic_run(&[false, false]), 0);
+        assert_eq!(longest_cyclic_run(&[true, true]), 2);
+    }
+}
