@@ -181,8 +181,9 @@ def beta_bar(s: Any, lam: Any, ratio: Any, t_max: Any = 60) -> BetaBar:
     r"""The threshold :math:`\bar\beta` above which the sensor should drop ACKs (Sec. IV-C).
 
     The paper defines :math:`\bar\beta` by
-    :math:`J(\tilde\theta_{on})_{\beta=\bar\beta} = J(\theta^\star_{off})`, but J is not a function of β alone: the run length r matters, and repeating a pattern
-    (kr of kt) hurts more as k grows. Two well-defined versions are returned:
+    :math:`J(\tilde\theta_{on})_{\beta=\bar\beta} = J(\theta^\star_{off})`, but J is not a
+    function of β alone: the run length r matters, and repeating a pattern (kr of kt) hurts more
+    as k grows. Two well-defined versions are returned:
 
     * ``finite``: the smallest :math:`\beta = r/t` in lowest terms with :math:`t \le t_{\max}` and
       :math:`J(r,t) \ge J_{\mathrm{off}}`;
