@@ -15,6 +15,15 @@ from .attack import (
     stationary_distribution,
     stationary_gth,
 )
+from .montecarlo import (
+    AttackPattern,
+    OfflineSchedule,
+    OnlineSchedule,
+    SimulationResult,
+    TraceCurve,
+    expected_trace_curve,
+    simulate,
+)
 from .schedules import (
     OnlineDesign,
     design_online,
@@ -42,6 +51,13 @@ from .threshold import (
 __version__ = "0.1.0"
 
 __all__ = [
+    "AttackPattern",
+    "OfflineSchedule",
+    "OnlineSchedule",
+    "SimulationResult",
+    "TraceCurve",
+    "expected_trace_curve",
+    "simulate",
     "BetaBar",
     "BetaSweep",
     "Decision",

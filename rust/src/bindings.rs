@@ -12,7 +12,7 @@ use crate::chain::{AttackChain, Csr};
 use crate::error::Error;
 use crate::pattern::{self, Segments};
 use crate::riccati::LinearSystem;
-use crate::{general, schedules, stationary, sweep};
+use crate::{general, schedules, stationary, sweep, transient};
 
 create_exception!(
     _fakeack,
@@ -229,6 +229,47 @@ impl PySystem {
             ))
         })
         .map_err(Into::into)
+    }
+
+    /// Exact E[Tr P_k], k = 1..horizon, under a periodic offline pattern.
+    fn curve_offline<'py>(
+        &self,
+        py: Python<'py>,
+        lam: f64,
+        pattern: Vec<u8>,
+        horizon: usize,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let out = py.detach(|| {
+            crate::error::check_lam(lam)?;
+            let gap = pattern.iter().filter(|&&g| g == 0).count();
+            let tr = self
+                .inner
+                .checked_weighted_traces(1.0, gap as u128, "pattern")?;
+            transient::offline(&tr, lam, &pattern, horizon)
+        })?;
+        Ok(out.into_pyarray(py))
+    }
+
+    /// Exact E[Tr P_k], k = 1..horizon, under the online schedule and a blocking mask.
+    fn curve_online<'py>(
+        &self,
+        py: Python<'py>,
+        lam: f64,
+        z0: u64,
+        mu: f64,
+        mask: Vec<bool>,
+        horizon: usize,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let out = py.detach(|| {
+            let (states, csr) = general::build(lam, z0, mu, &mask)?;
+            let taus: Vec<u64> = states.iter().map(|s| s.0).collect();
+            let top = taus.iter().copied().max().unwrap_or(0);
+            let tr = self
+                .inner
+                .checked_weighted_traces(1.0, top as u128, "mask")?;
+            transient::chain(&csr, &taus, &tr, horizon)
+        })?;
+        Ok(out.into_pyarray(py))
     }
 
     /// (worst mask, its J, J of the consecutive mask).

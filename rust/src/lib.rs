@@ -18,6 +18,7 @@ pub mod rng;
 pub mod schedules;
 pub mod stationary;
 pub mod sweep;
+pub mod transient;
 
 #[cfg(feature = "python")]
 mod bindings;

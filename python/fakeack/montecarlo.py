@@ -1,0 +1,337 @@
+"""Schedules as objects, Monte Carlo of the real protocol, and exact finite-horizon curves."""
+
+from __future__ import annotations
+
+import sys
+import time
+from dataclasses import dataclass, field
+from fractions import Fraction
+from typing import Any
+
+import numpy as np
+
+from . import _fakeack
+from ._validate import as_int, as_probability, as_ratio
+from .attack import as_mask
+from .schedules import design_online, offline_schedule
+from .system import _core
+
+__all__ = [
+    "AttackPattern",
+    "OfflineSchedule",
+    "OnlineSchedule",
+    "SimulationResult",
+    "TraceCurve",
+    "expected_trace_curve",
+    "simulate",
+]
+
+
+
+@dataclass(frozen=True)
+class OfflineSchedule:
+    """The optimal offline schedule for an energy ratio (Theorem 3.1).
+
+    Examples
+    --------
+    >>> OfflineSchedule(Fraction(1, 7))
+    OfflineSchedule(ratio=Fraction(1, 7))
+    >>> str(OfflineSchedule("1/7"))
+    'offline 1/7: 1000000'
+    """
+
+    ratio: Fraction
+
+    def __init__(self, ratio: Any):
+        object.__setattr__(self, "ratio", as_ratio("ratio", ratio))
+
+    @property
+    def pattern(self) -> np.ndarray:
+        """One period, 1 = high power."""
+        return offline_schedule(self.ratio)
+
+    def __str__(self) -> str:
+        pat = self.pattern
+        body = "".join(map(str, pat.tolist())) if len(pat) <= 40 else f"{len(pat)} steps"
+        return f"offline {self.ratio}: {body}"
+
+
+@dataclass(frozen=True)
+class OnlineSchedule:
+    """The ACK-based online schedule: a flag-ACK after z0 losses (z0+1 with probability 1-mu)."""
+
+    z0: int
+    mu: float = 1.0
+
+    def __init__(self, z0: Any, mu: Any = 1.0):
+        object.__setattr__(self, "z0", as_int("z0", z0, minimum=1))
+        object.__setattr__(self, "mu", as_probability("mu", mu, closed=True))
+
+    @classmethod
+    def design(cls, lam: Any, ratio: Any) -> OnlineSchedule:
+        """The schedule that spends the energy ratio exactly (:func:`fakeack.design_online`)."""
+        z0, mu = design_online(lam, ratio)
+        return cls(z0, mu)
+
+    def __str__(self) -> str:
+        return f"online z0={self.z0}" + ("" if self.mu == 1.0 else f", mu={self.mu:.6g}")
+
+
+@dataclass(frozen=True)
+class AttackPattern:
+    """A periodic blocking mask over the attacker's flag counter (1 = block that flag-ACK).
+
+    ``AttackPattern.first(r, t)`` is the paper's Algorithm 1 (ERRATA item 3: blocks r of t).
+    """
+
+    mask: tuple[bool, ...]
+
+    def __init__(self, mask: Any):
+        object.__setattr__(self, "mask", tuple(as_mask(mask)))
+
+    @classmethod
+    def first(cls, r: Any, t: Any) -> AttackPattern:
+        t = as_int("t", t, minimum=1)
+        r = as_int("r", r, minimum=0)
+        if r >= t:
+            raise ValueError(f"r must be smaller than t = {t}, got r = {r}")
+        return cls([1] * r + [0] * (t - r))
+
+    @property
+    def beta(self) -> Fraction:
+        """Fraction of flag-ACKs blocked."""
+        return Fraction(sum(self.mask), len(self.mask))
+
+    def __str__(self) -> str:
+        return "attack " + "".join("1" if b else "0" for b in self.mask)
+
+
+def _attack_mask(attack: Any) -> list[bool] | None:
+    if attack is None:
+        return None
+    if isinstance(attack, AttackPattern):
+        return list(attack.mask)
+    if isinstance(attack, tuple) and len(attack) == 2:
+        return list(AttackPattern.first(*attack).mask)
+    raise TypeError(
+        f"attack must be None, an (r, t) tuple or a fakeack.AttackPattern, got {type(attack).__name__}"
+    )
+
+
+def _schedule(sched: Any) -> OfflineSchedule | OnlineSchedule:
+    if not isinstance(sched, (OfflineSchedule, OnlineSchedule)):
+        raise TypeError(
+            f"sched must be a fakeack.OfflineSchedule or fakeack.OnlineSchedule, got {type(sched).__name__}"
+        )
+    return sched
+
+
+@dataclass(frozen=True)
+class TraceCurve:
+    """Exact :math:`\\mathbb E[\\mathrm{Tr}\\,P_k]` and :math:`J_k` for k = 1..horizon."""
+
+    k: np.ndarray
+    trace: np.ndarray
+    """E[Tr P_k]."""
+    j_k: np.ndarray
+    """J_k = (1/k) Σ_{i<=k} E[Tr P_i] (the paper's Sec. V quantity)."""
+
+
+def expected_trace_curve(
+    system: Any, lam: Any, sched: Any, horizon: Any = 200, attack: Any = None
+) -> TraceCurve:
+    r"""Exact finite-horizon curve :math:`\mathbb E[\mathrm{Tr}\,P_k]`, k = 1..horizon (no sampling).
+
+    Propagates the law of the protocol's state (holding time, memory zeros, attacker counter) from
+    the paper's initial condition (high power at k = 1, memory all ones, counter 0), so the
+    transient of the paper's Figs. 3-4 appears without Monte Carlo noise. As k grows, ``j_k``
+    tends to the stationary J (:func:`fakeack.j_offline`, :func:`fakeack.j_online`,
+    :func:`fakeack.j_attack`).
+
+    Parameters
+    ----------
+    system : LinearSystem
+    lam : float
+        Arrival probability at low power.
+    sched : OfflineSchedule or OnlineSchedule
+    horizon : int, optional
+        Number of steps (default 200).
+    attack : None, (r, t) or AttackPattern, optional
+        Blocking pattern; online schedules only (an offline schedule ignores ACKs).
+
+    Returns
+    -------
+    TraceCurve
+    """
+    core = _core(system)
+    lam = as_probability("lam", lam)
+    sched = _schedule(sched)
+    horizon = as_int("horizon", horizon, minimum=1)
+    mask = _attack_mask(attack)
+    if isinstance(sched, OfflineSchedule):
+        if mask is not None:
+            raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
+        trace = core.curve_offline(lam, sched.pattern.astype(np.uint8).tolist(), horizon)
+    else:
+        if mask is not None and all(mask):
+            raise ValueError("attack blocks every flag-ACK: the state space is unbounded")
+        trace = core.curve_online(lam, sched.z0, sched.mu, mask or [False], horizon)
+    k = np.arange(1, horizon + 1)
+    return TraceCurve(k, trace, np.cumsum(trace) / k)
+
+
+@dataclass(frozen=True)
+class SimulationResult:
+    """Monte Carlo estimates of the protocol (see :func:`simulate`)."""
+
+    j_k: np.ndarray
+    """J_k = (1/k) Σ_{i<=k} Tr P_i averaged over runs, k = 1..horizon."""
+    mean_trace: np.ndarray
+    """Tr P_k (covariance mode) or ||x_k - x̂_k||² (state mode) averaged over runs."""
+    j: float
+    """Time average over the horizon, averaged over runs (= j_k[-1])."""
+    stderr: float
+    """Standard error of ``j`` across runs."""
+    high_power_rate: float
+    """Fraction of steps at high power Δ."""
+    flags_sent: float
+    """Flag-ACKs sent by the detector per step."""
+    flags_blocked: float
+    """Flag-ACKs blocked by the attacker per step."""
+    runs: int
+    horizon: int
+    seed: int
+    mode: str
+    protocol: str
+    schedule: str = field(default="")
+    attack: str = field(default="none")
+
+    def __str__(self) -> str:
+        return (
+            f"J = {self.j:.6f} ± {self.stderr:.6f} ({self.runs} runs x {self.horizon} steps, "
+            f"{self.schedule}, {self.attack}, {self.mode} mode)"
+        )
+
+
+class _Progress:
+    """A tqdm bar that appears only if a run lasts longer than a second."""
+
+    def __init__(self, total: int, enabled: bool | None):
+        self.total, self.bar, self.start = total, None, time.monotonic()
+        self.enabled = sys.stderr.isatty() if enabled is None else bool(enabled)
+
+    def __call__(self, done: int) -> None:
+        if not self.enabled:
+            return
+        if self.bar is None:
+            if time.monotonic() - self.start < 1.0:
+                return
+            try:
+                from tqdm.auto import tqdm
+            except ImportError:  # the bar is optional (pip install fakeack[progress])
+                self.enabled = False
+                return
+            self.bar = tqdm(total=self.total, unit="run", desc="fakeack simulate")
+        self.bar.update(done - self.bar.n)
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+
+
+def simulate(
+    system: Any,
+    lam: Any,
+    sched: Any,
+    horizon: Any = 1000,
+    runs: Any = 100_000,
+    seed: Any = 1,
+    attack: Any = None,
+    mode: str = "covariance",
+    protocol: str = "B",
+    progress: bool | None = None,
+) -> SimulationResult:
+    r"""Monte Carlo of the real protocol: sensor, lossy channel, event detector, attacker.
+
+    Simulates the mechanisms, not the Markov chain, so it independently checks every analytic
+    formula. Each step the sensor picks Δ (always arrives) or δ (arrives with probability
+    :math:`\lambda`); the remote estimator follows eq. (7)-(8); the event detector keeps the ACK
+    memory (z0 bits with probability μ, else z0+1; reset after each flag-ACK); the attacker blocks
+    flag-ACKs per its mask. Runs start from the paper's initial condition.
+
+    Parameters
+    ----------
+    system : LinearSystem
+    lam : float
+        Arrival probability at low power.
+    sched : OfflineSchedule or OnlineSchedule
+    horizon : int, optional
+        Steps per run (default 1000).
+    runs : int, optional
+        Independent runs (default 100000, as in the paper). Memory does not grow with runs.
+    seed : int, optional
+        Results depend only on the seed, not on the number of threads.
+    attack : None, (r, t) or AttackPattern, optional
+        Fake-ACK attack (online schedules only).
+    mode : {"covariance", "state"}
+        ``"covariance"`` tracks the holding time and averages :math:`\mathrm{Tr}\,P_k`;
+        ``"state"`` simulates Gaussian noise, the sensor's steady-state Kalman filter and the
+        remote estimator, and averages the squared estimation error (the error dynamics are
+        simulated directly, so unstable A never overflows).
+    protocol : {"B", "A"}
+        Type B: a flag packet that the attacker drops; Type A: a bit every step that the attacker
+        flips. The statistics are identical (Sec. IV-A).
+    progress : bool or None
+        Show a tqdm bar for runs over a second; ``None`` (default) shows it only on a terminal.
+
+    Returns
+    -------
+    SimulationResult
+
+    Notes
+    -----
+    Runs in parallel on all cores with the GIL released; Ctrl-C raises ``KeyboardInterrupt``
+    within a fraction of a second.
+    """
+    core = _core(system)
+    lam = as_probability("lam", lam)
+    sched = _schedule(sched)
+    horizon = as_int("horizon", horizon, minimum=1)
+    runs = as_int("runs", runs, minimum=1)
+    seed = as_int("seed", seed, minimum=0)
+    if seed >= 2**64:
+        raise ValueError(f"seed must be below 2**64, got {seed}")
+    if mode not in ("covariance", "state"):
+        raise ValueError(f"mode must be 'covariance' or 'state', got {mode!r}")
+    if protocol not in ("A", "B"):
+        raise ValueError(f"protocol must be 'A' or 'B', got {protocol!r}")
+    mask = _attack_mask(attack)
+    if isinstance(sched, OfflineSchedule):
+        if mask is not None:
+            raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
+        kind, pattern, z0, mu = "offline", sched.pattern.astype(np.uint8).tolist(), 1, 1.0
+    else:
+        kind, pattern, z0, mu = "online", [], sched.z0, sched.mu
+    bar = _Progress(runs, progress)
+    try:
+        out = _fakeack.simulate(
+            core, lam, kind, pattern, z0, mu, mask, mode, protocol, horizon, runs, seed, bar
+        )
+    finally:
+        bar.close()
+    return SimulationResult(
+        j_k=out["j_k"],
+        mean_trace=out["mean_trace"],
+        j=out["j"],
+        stderr=out["stderr"],
+        high_power_rate=out["high_power_rate"],
+        flags_sent=out["flags_sent"],
+        flags_blocked=out["flags_blocked"],
+        runs=runs,
+        horizon=horizon,
+        seed=seed,
+        mode=mode,
+        protocol=protocol,
+        schedule=str(sched),
+        attack="none" if mask is None else str(AttackPattern(mask)),
+    )

@@ -1,0 +1,141 @@
+//! Exact finite-horizon curves E[Tr P_k], k = 1..horizon, by propagating the state law (no
+//! sampling), from the paper's initial condition: high power at k = 1 (τ_1 = 0), memory all ones,
+//! attacker counter 0.
+
+use crate::chain::Csr;
+use crate::error::{Error, Result};
+
+/// Largest horizon × transitions a curve may cost.
+pub const MAX_WORK: u128 = 4_000_000_000;
+
+fn check_horizon(horizon: usize, per_step: usize) -> Result<()> {
+    if horizon == 0 {
+        return Err(Error::invalid("horizon", "must be at least 1"));
+    }
+    let work = horizon as u128 * per_step.max(1) as u128;
+    if work > MAX_WORK {
+        return Err(Error::TooLarge {
+            arg: "horizon".into(),
+            requested: work,
+            limit: MAX_WORK,
+        });
+    }
+    Ok(())
+}
+
+/// Trace at holding time τ, +inf beyond the table (never reached for bounded τ).
+fn trace_at(tr: &[f64], tau: usize) -> f64 {
+    tr.get(tau).copied().unwrap_or(f64::INFINITY)
+}
+
+/// Offline periodic schedule: `pattern[(k-1) % q] == 1` is high power at step k.
+/// `tr` must cover the longest run of zeros.
+pub fn offline(tr: &[f64], lam: f64, pattern: &[u8], horizon: usize) -> Result<Vec<f64>> {
+    if pattern.first() != Some(&1) {
+        return Err(Error::invalid(
+            "pattern",
+            "must start with a high-power step (1)",
+        ));
+    }
+    let cap = tr.len().max(1);
+    check_horizon(horizon, cap)?;
+    let a = 1.0 - lam;
+    // law[τ]: probability of holding time τ (τ < cap; beyond the table mass is kept in `over`).
+    let mut law = vec![0.0; cap];
+    let mut out = Vec::with_capacity(horizon);
+    let mut over = 0.0;
+    for k in 0..horizon {
+        if pattern[k % pattern.len()] == 1 {
+            law.iter_mut().for_each(|x| *x = 0.0);
+            law[0] = 1.0;
+            over = 0.0;
+        } else {
+            let total: f64 = law.iter().sum::<f64>() + over;
+            over = a * (over + law[cap - 1]);
+            for tau in (1..cap).rev() {
+                law[tau] = a * law[tau - 1];
+            }
+            law[0] = lam * total;
+        }
+        let mut e: f64 = law.iter().zip(tr).map(|(p, t)| p * t).sum();
+        if over > 0.0 {
+            e = f64::INFINITY;
+        }
+        out.push(e);
+    }
+    Ok(out)
+}
+
+/// Any chain: `states_tau[i]` is state i's holding time, state 0 the initial state.
+pub fn chain(csr: &Csr, states_tau: &[u64], tr: &[f64], horizon: usize) -> Result<Vec<f64>> {
+    check_horizon(horizon, csr.indices.len())?;
+    let n = csr.n;
+    if states_tau.len() != n || n == 0 {
+        return Err(Error::invalid(
+            "states_tau",
+            "must give one holding time per state",
+        ));
+    }
+    let mut law = vec![0.0; n];
+    let mut next = vec![0.0; n];
+    law[0] = 1.0;
+    let trs: Vec<f64> = states_tau
+        .iter()
+        .map(|&t| trace_at(tr, t as usize))
+        .collect();
+    let mut out = Vec::with_capacity(horizon);
+    for k in 0..horizon {
+        out.push(
+            law.iter()
+                .zip(&trs)
+                .filter(|(p, _)| **p > 0.0)
+                .map(|(p, t)| p * t)
+                .sum(),
+        );
+        if k + 1 == horizon {
+            break;
+        }
+        next.iter_mut().for_each(|x| *x = 0.0);
+        for (i, &p) in law.iter().enumerate() {
+            if p == 0.0 {
+                continue;
+            }
+            for e in csr.indptr[i]..csr.indptr[i + 1] {
+                next[csr.indices[e]] += p * csr.data[e];
+            }
+        }
+        std::mem::swap(&mut law, &mut next);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::general;
+
+    #[test]
+    fn online_curve_converges_to_stationary() {
+        let lam = 0.5;
+        let tr: Vec<f64> = (0..40).map(|i| 1.0 + i as f64).collect();
+        let (states, csr) = general::build(lam, 2, 1.0, &[false]).unwrap();
+        let taus: Vec<u64> = states.iter().map(|s| s.0).collect();
+        let c = chain(&csr, &taus, &tr, 200).unwrap();
+        assert_eq!(c[0], tr[0]);
+        // Step 2: low power, τ = 0 or 1 with probability 1/2 each.
+        assert!((c[1] - 0.5 * (tr[0] + tr[1])).abs() < 1e-15);
+        // J_on = λ/(1-a^3) (tr0 + a tr1 + a² tr2).
+        let jon = 0.5 / (1.0 - 0.125) * (tr[0] + 0.5 * tr[1] + 0.25 * tr[2]);
+        assert!((c[199] - jon).abs() < 1e-12);
+    }
+
+    #[test]
+    fn offline_curve_is_periodic() {
+        let tr: Vec<f64> = (0..10).map(|i| 2.0f64.powi(i)).collect();
+        let c = offline(&tr, 0.3, &[1, 0, 0], 9).unwrap();
+        assert_eq!(c[0], 1.0);
+        assert!((c[1] - (0.3 + 0.7 * 2.0)).abs() < 1e-15);
+        assert_eq!(c[3], 1.0);
+        assert!((c[4] - c[1]).abs() < 1e-15);
+    }
+}
