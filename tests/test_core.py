@@ -3,12 +3,13 @@
 import math
 from fractions import Fraction
 
-import fakeack as fa
 import numpy as np
 import pytest
+from numpy.testing import assert_allclose
+
+import fakeack as fa
 import reference as ref
 from conftest import PAPER, PAPER_LAM, PAPER_RATIO, random_system
-from numpy.testing import assert_allclose
 
 # ---------------------------------------------------------------- P̄ and traces
 

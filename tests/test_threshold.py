@@ -4,13 +4,14 @@ import itertools
 import math
 from fractions import Fraction
 
-import fakeack as fa
 import numpy as np
 import pytest
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from conftest import PAPER_LAM, PAPER_RATIO, random_system
 from numpy.testing import assert_allclose
+
+import fakeack as fa
+from conftest import PAPER_LAM, PAPER_RATIO, random_system
 
 
 def j_by_general_chain(s, lam, z0, mask, mu):

@@ -47,8 +47,12 @@ def as_probability(name: str, x: Any, *, closed: bool = False) -> float:
     return v
 
 
-def as_int(name: str, x: Any, *, minimum: int | None = None) -> int:
-    """An integer (int, numpy integer, or an integral float/Fraction) no smaller than ``minimum``."""
+#: Largest integer argument accepted anywhere (the core counts in 64-bit words).
+MAX_INT = 2**62
+
+
+def as_int(name: str, x: Any, *, minimum: int | None = None, maximum: int = MAX_INT) -> int:
+    """An integer (int, numpy integer, or an integral float/Fraction) in [minimum, maximum]."""
     if _is_bool(x):
         raise TypeError(f"{name} must be an integer, got bool")
     if isinstance(x, (numbers.Integral, np.integer)):
@@ -64,6 +68,8 @@ def as_int(name: str, x: Any, *, minimum: int | None = None) -> int:
         raise TypeError(f"{name} must be an integer, got {type(x).__name__}")
     if minimum is not None and v < minimum:
         raise ValueError(f"{name} must be at least {minimum}, got {v}")
+    if v > maximum:
+        raise ValueError(f"{name} must be at most {maximum}, got {v}")
     return v
 
 
@@ -97,13 +103,15 @@ def as_ratio(name: str, x: Any) -> Fraction:
     v = as_fraction(name, x)
     if not 0 < v < 1:
         raise ValueError(f"{name} must lie strictly between 0 and 1, got {v}")
+    if v.denominator > MAX_INT:
+        raise ValueError(f"{name}: denominator {v.denominator} exceeds {MAX_INT}")
     return v
 
 
 def as_matrix(name: str, x: Any, *, shape: tuple[int, int] | None = None) -> np.ndarray:
     """A finite real 2-D float64 array (a scalar becomes 1x1), C-contiguous and owned."""
-    if _is_bool(x):
-        raise TypeError(f"{name} must be a real scalar or 2-D array, got bool")
+    if _is_bool(x) or x is None or isinstance(x, (str, bytes)):
+        raise TypeError(f"{name} must be a real scalar or 2-D array, got {type(x).__name__}")
     if isinstance(x, Fraction):
         x = float(x)
     try:
@@ -111,6 +119,8 @@ def as_matrix(name: str, x: Any, *, shape: tuple[int, int] | None = None) -> np.
     except Exception as exc:  # ragged lists and the like
         raise ValueError(f"{name}: cannot be read as an array ({exc})") from exc
     if arr.dtype == object:
+        if not all(isinstance(v, (numbers.Real, np.number)) and not _is_bool(v) for v in arr.flat):
+            raise TypeError(f"{name} must hold real numbers")
         try:
             arr = arr.astype(np.float64)
         except (TypeError, ValueError) as exc:

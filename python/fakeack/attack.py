@@ -152,9 +152,17 @@ def j_attack(s: Any, lam: Any, z0: Any, r: Any, t: Any, mu: Any = 1.0) -> float:
     return core.j_attack(lam, z0, r, t, mu)
 
 
+#: Longest blocking mask (in flag-ACKs per period) accepted.
+MAX_MASK = 10_000_000
+
+
 def as_mask(mask: Any) -> list[bool]:
     """A non-empty 1-D 0/1 (or bool) blocking mask as a list of bools."""
+    if isinstance(mask, (str, bytes)) or mask is None:
+        raise TypeError(f"mask must be a sequence of 0/1, got {type(mask).__name__}")
     arr = np.asarray(mask)
+    if arr.size > MAX_MASK:
+        raise ValueError(f"mask: longer than {MAX_MASK} flag-ACKs")
     if arr.ndim != 1 or arr.size == 0:
         raise ValueError(f"mask must be a non-empty 1-D sequence of 0/1, got shape {arr.shape}")
     if arr.dtype.kind not in "biu" and not (arr.dtype.kind == "f" and np.all(np.isin(arr, (0, 1)))):

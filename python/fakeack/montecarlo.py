@@ -12,7 +12,7 @@ import numpy as np
 
 from . import _fakeack
 from ._validate import as_int, as_probability, as_ratio
-from .attack import as_mask
+from .attack import MAX_MASK, as_mask
 from .schedules import design_online, offline_schedule
 from .system import _core
 
@@ -91,7 +91,8 @@ class AttackPattern:
 
     @classmethod
     def first(cls, r: Any, t: Any) -> AttackPattern:
-        t = as_int("t", t, minimum=1)
+        """Block the first r of every t flag-ACKs (Algorithm 1)."""
+        t = as_int("t", t, minimum=1, maximum=MAX_MASK)
         r = as_int("r", r, minimum=0)
         if r >= t:
             raise ValueError(f"r must be smaller than t = {t}, got r = {r}")

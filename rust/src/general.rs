@@ -5,8 +5,11 @@
 
 use std::collections::HashMap;
 
-use crate::chain::{Csr, MAX_BUILD_STATES};
+use crate::chain::Csr;
 use crate::error::{check_lam, check_mu, Error, Result};
+
+/// Largest chain [`build`] explores (hashing makes it slower per state than the (τ, σ) chain).
+pub const MAX_GENERAL_STATES: u128 = 5_000_000;
 
 /// A state (τ, z, σ).
 pub type GState = (u64, u64, u64);
@@ -71,11 +74,11 @@ pub fn build(lam: f64, z0: u64, mu: f64, mask: &[bool]) -> Result<(Vec<GState>, 
             let j = match index.get(&s) {
                 Some(&j) => j,
                 None => {
-                    if states.len() as u128 >= MAX_BUILD_STATES {
+                    if states.len() as u128 >= MAX_GENERAL_STATES {
                         return Err(Error::TooLarge {
                             arg: "(z0, mask)".into(),
                             requested: states.len() as u128 + 1,
-                            limit: MAX_BUILD_STATES,
+                            limit: MAX_GENERAL_STATES,
                         });
                     }
                     states.push(s);

@@ -13,6 +13,8 @@ pub mod error;
 pub mod general;
 pub mod montecarlo;
 pub mod pattern;
+#[cfg(test)]
+mod properties;
 pub mod riccati;
 pub mod rng;
 pub mod schedules;

@@ -18,7 +18,7 @@ use crate::error::{check_lam, check_mu, Error, Result};
 use crate::riccati::LinearSystem;
 
 /// Largest segment index for μ < 1, where building the segments costs O(kmax²).
-pub const MAX_SEGMENTS_MIXED: u64 = 200_000;
+pub const MAX_SEGMENTS_MIXED: u64 = 20_000;
 
 /// Segment sums of one fresh-start walk.
 #[derive(Debug, Clone)]

@@ -6,7 +6,7 @@ use crate::chain::Csr;
 use crate::error::{Error, Result};
 
 /// Largest horizon × transitions a curve may cost.
-pub const MAX_WORK: u128 = 4_000_000_000;
+pub const MAX_WORK: u128 = 1_000_000_000;
 
 fn check_horizon(horizon: usize, per_step: usize) -> Result<()> {
     if horizon == 0 {

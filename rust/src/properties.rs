@@ -1,0 +1,85 @@
+//! Property-based tests across modules (proptest): random systems up to n_x = 6, λ in (0, 1),
+//! z0 in 1..=8, r < t <= 60, μ in [0, 1].
+
+use nalgebra::DMatrix;
+use proptest::prelude::*;
+
+use crate::chain::AttackChain;
+use crate::general;
+use crate::pattern::{longest_cyclic_run, Segments};
+use crate::riccati::LinearSystem;
+use crate::schedules::{j_max, j_online};
+use crate::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
+
+fn system(n: usize, m: usize, entries: &[f64], scale: f64) -> Option<LinearSystem> {
+    let mut it = entries.iter().cycle().copied();
+    let a = DMatrix::from_fn(n, n, |_, _| it.next().unwrap_or(0.0)) * scale;
+    let c = DMatrix::from_fn(m, n, |_, _| it.next().unwrap_or(0.0));
+    let b = DMatrix::from_fn(n, n, |_, _| it.next().unwrap_or(0.0));
+    let d = DMatrix::from_fn(m, m, |_, _| it.next().unwrap_or(0.0));
+    let q = &b * b.transpose() + DMatrix::identity(n, n) * 0.1;
+    let r = &d * d.transpose() + DMatrix::identity(m, m) * 0.2;
+    LinearSystem::new(a, c, q, r).ok()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 48, ..ProptestConfig::default() })]
+
+    #[test]
+    fn stationary_solvers_agree(lam in 0.01f64..0.99, z0 in 1u64..=8, t in 1u64..=60, rfrac in 0.0f64..1.0) {
+        let r = ((t as f64) * rfrac) as u64 % t;
+        let chain = AttackChain::new(lam, z0, r, t).unwrap();
+        let fast = structured(&chain).unwrap();
+        let slow = gth(&chain.build_csr().unwrap()).unwrap();
+        prop_assert!(fast.iter().all(|&x| x >= 0.0));
+        prop_assert!((pairwise_sum(&fast) - 1.0).abs() < 1e-12);
+        for (x, y) in fast.iter().zip(&slow) {
+            prop_assert!((x - y).abs() < 1e-12, "{} vs {}", x, y);
+        }
+        prop_assert!(balance_residual(&chain, &fast) < 1e-12);
+    }
+
+    #[test]
+    fn riccati_residual_small(n in 1usize..=6, m in 1usize..=3, entries in prop::collection::vec(-1.0f64..1.0, 100), scale in 0.2f64..1.6) {
+        if let Some(sys) = system(n, m, &entries, scale) {
+            prop_assert!(sys.residual() < 1e-10, "residual {}", sys.residual());
+        }
+    }
+
+    #[test]
+    fn cost_ordering(n in 1usize..=4, entries in prop::collection::vec(-1.0f64..1.0, 60), scale in 0.2f64..1.3,
+                     lam in 0.05f64..0.95, z0 in 1u64..=5, t in 2u64..=30) {
+        let Some(sys) = system(n, 1, &entries, scale) else { return Ok(()) };
+        let a = 1.0 - lam;
+        let w = sys.weighted_traces(a, (z0 * (t + 1)) as usize + 2);
+        let jon = j_online(&w, lam, z0, 1.0).unwrap();
+        let jmax = j_max(&sys, lam).unwrap();
+        let mut prev = jon;
+        for r in 0..t {
+            let j = j_attack(&AttackChain::new(lam, z0, r, t).unwrap(), &w).unwrap();
+            prop_assert!(j >= prev * (1.0 - 1e-12), "J not increasing in r: {} < {}", j, prev);
+            prop_assert!(j <= jmax * (1.0 + 1e-12));
+            prev = j;
+        }
+    }
+
+    #[test]
+    fn mixed_memory_masks_match_general_chain(lam in 0.05f64..0.95, z0 in 1u64..=4, mu in 0.0f64..=1.0,
+                                               bits in prop::collection::vec(any::<bool>(), 1..9)) {
+        prop_assume!(!bits.iter().all(|&b| b));
+        let kmax = longest_cyclic_run(&bits) as u64;
+        let tr = |i: usize| 1.0 + 0.3 * i as f64 + 1.1f64.powi(i as i32);
+        let need = crate::pattern::tau_needed(z0, kmax) as usize;
+        let w: Vec<f64> = (0..=need).map(|i| a_pow(lam, i) * tr(i)).collect();
+        let seg = Segments::new(&w, lam, z0, mu, kmax).unwrap();
+        let got = seg.j_mask(&bits).unwrap();
+        let (states, csr) = general::build(lam, z0, mu, &bits).unwrap();
+        let pi = gth(&csr).unwrap();
+        let expect: f64 = states.iter().zip(&pi).map(|(s, p)| p * tr(s.0 as usize)).sum();
+        prop_assert!((got - expect).abs() < 1e-11 * expect, "{} vs {}", got, expect);
+    }
+}
+
+fn a_pow(lam: f64, i: usize) -> f64 {
+    (1.0 - lam).powi(i as i32)
+}
