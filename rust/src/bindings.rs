@@ -7,9 +7,13 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2}
 use pyo3::create_exception;
 use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 use crate::chain::{AttackChain, Csr};
 use crate::error::Error;
+use crate::montecarlo::{self, McConfig, McSchedule, Mode, Protocol};
 use crate::pattern::{self, Segments};
 use crate::riccati::LinearSystem;
 use crate::{general, schedules, stationary, sweep, transient};
@@ -442,6 +446,107 @@ fn balance_residual(
     Ok(stationary::balance_residual(&chain, pi))
 }
 
+/// Monte Carlo of the protocol. The kernel runs on a worker thread (rayon inside) with the GIL
+/// released; this thread wakes every 50 ms to check for Ctrl-C (cancelling the kernel) and to
+/// report progress to `progress(done_runs)`.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+fn simulate<'py>(
+    py: Python<'py>,
+    system: &Bound<'py, PySystem>,
+    lam: f64,
+    kind: &str,
+    pattern: Vec<u8>,
+    z0: u64,
+    mu: f64,
+    mask: Option<Vec<bool>>,
+    mode: &str,
+    protocol: &str,
+    horizon: usize,
+    runs: u64,
+    seed: u64,
+    progress: Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let schedule = match kind {
+        "offline" => McSchedule::Offline { pattern },
+        "online" => McSchedule::Online { z0, mu },
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "kind: unknown schedule {kind:?}"
+            )))
+        }
+    };
+    let mode = match mode {
+        "covariance" => Mode::Covariance,
+        "state" => Mode::State,
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "mode: unknown mode {mode:?}"
+            )))
+        }
+    };
+    let protocol = match protocol {
+        "A" => Protocol::A,
+        "B" => Protocol::B,
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "protocol: unknown protocol {protocol:?}"
+            )))
+        }
+    };
+    let cfg = McConfig {
+        lam,
+        schedule,
+        attack: mask,
+        mode,
+        protocol,
+        horizon,
+        runs,
+        seed,
+    };
+    let sys = system.get().inner.clone();
+    let cancel = AtomicBool::new(false);
+    let done = AtomicU64::new(0);
+    let res = std::thread::scope(|scope| -> PyResult<montecarlo::McResult> {
+        let worker = scope.spawn(|| montecarlo::simulate(&sys, &cfg, &cancel, &done));
+        loop {
+            let finished = py.detach(|| {
+                let start = Instant::now();
+                while !worker.is_finished() && start.elapsed() < Duration::from_millis(50) {
+                    std::thread::sleep(Duration::from_millis(2));
+                }
+                worker.is_finished()
+            });
+            let polled = py
+                .check_signals()
+                .and_then(|_| progress.call1((done.load(Ordering::Relaxed),)).map(|_| ()));
+            if let Err(e) = polled {
+                cancel.store(true, Ordering::Relaxed);
+                let _ = worker.join();
+                return Err(e);
+            }
+            if finished {
+                return match worker.join() {
+                    Ok(r) => r.map_err(Into::into),
+                    Err(_) => Err(PyValueError::new_err(
+                        "internal error: the simulation thread panicked",
+                    )),
+                };
+            }
+        }
+    })?;
+    let out = PyDict::new(py);
+    out.set_item("mean_trace", res.mean_trace.into_pyarray(py))?;
+    out.set_item("j_k", res.j_k.into_pyarray(py))?;
+    out.set_item("j", res.j)?;
+    out.set_item("stderr", res.stderr)?;
+    out.set_item("high_power_rate", res.high_power_rate)?;
+    out.set_item("flags_sent", res.flags_sent)?;
+    out.set_item("flags_blocked", res.flags_blocked)?;
+    out.set_item("steps", res.steps)?;
+    Ok(out)
+}
+
 #[pymodule]
 #[pyo3(name = "_fakeack")]
 fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -453,6 +558,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(attack_chain, m)?)?;
     m.add_function(wrap_pyfunction!(stationary_structured, m)?)?;
     m.add_function(wrap_pyfunction!(general_chain, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(stationary_gth, m)?)?;
     m.add_function(wrap_pyfunction!(balance_residual, m)?)?;
     m.add("MAX_BUILD_STATES", crate::chain::MAX_BUILD_STATES as u64)?;
