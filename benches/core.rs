@@ -1,1 +1,231 @@
-fn main() {}
+//! Criterion benchmarks of the numerical core (no Python).
+//!
+//! ```text
+//! CARGO_TARGET_DIR=/tmp/target-bench cargo bench --bench core             # everything, a few minutes
+//! CARGO_TARGET_DIR=/tmp/target-bench cargo bench --bench core -- pbar     # one group (a regex filter)
+//! ```
+//!
+//! Groups, one benchmark per size:
+//! * `pbar/n_x=..`: `LinearSystem::new` (validation, Riccati doubling, the stabilising check) on a
+//!   fixed pseudo-random system, n_x = 1, 10, 50, 200;
+//! * `stationary/S=..`: `stationary::structured` plus J (`weighted_traces` + `stationary::j_attack`)
+//!   on the paper's scalar system, |S| ≈ 1e4, 1e6, 1e7;
+//! * `sweep/t_max=..`: `Segments::for_system` + `sweep::sweep`, t_max = 1e3, 1e4 (the paper's online
+//!   schedule, λ = 0.5, z0 = 2, μ = 1);
+//! * `montecarlo/..`: `montecarlo::simulate`, covariance and state modes, paper's system, online
+//!   z0 = 2 under the attack "first 1 of every 5"; throughput in simulated steps (runs × horizon).
+//!
+//! Sample counts are criterion's minimum (10) with short measurement windows so that the whole file
+//! runs in a few minutes; the machine is usually shared, so read the numbers as indicative.
+
+use std::hint::black_box;
+use std::sync::atomic::{AtomicBool, AtomicU64};
+use std::time::Duration;
+
+use criterion::{
+    criterion_group, criterion_main, BenchmarkId, Criterion, SamplingMode, Throughput,
+};
+use nalgebra::DMatrix;
+
+use fakeack::chain::{self, AttackChain};
+use fakeack::montecarlo::{self, McConfig, McSchedule, Mode, Protocol};
+use fakeack::pattern::Segments;
+use fakeack::riccati::{spectral_radius, LinearSystem};
+use fakeack::{stationary, sweep};
+
+/// The paper's example: A = 1.2, C = 0.7, Q = R = 0.8, λ = 0.5.
+const LAM: f64 = 0.5;
+
+fn paper_system() -> LinearSystem {
+    let m = |x: f64| DMatrix::from_element(1, 1, x);
+    LinearSystem::new(m(1.2), m(0.7), m(0.8), m(0.8)).expect("paper system")
+}
+
+/// (z0, r, t) with |S| = r(r+1)z0/2 + t(z0+1) within 1 of the target; half the states in the
+/// growing levels σ <= r, half in the short ones (same table as benches/compare.py).
+const CHAINS: [(&str, u64, u64, u64); 3] = [
+    ("1e4", 2, 70, 1_677),
+    ("1e6", 2, 700, 169_767),
+    ("1e7", 2, 2_236, 1_666_023),
+];
+
+/// SplitMix64: a tiny deterministic generator so the benchmark needs no extra crate.
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in (0, 1).
+    fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+    /// Standard normal (Box-Muller).
+    fn normal(&mut self) -> f64 {
+        let (u, v) = (self.uniform(), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (2.0 * std::f64::consts::PI * v).cos()
+    }
+    fn matrix(&mut self, rows: usize, cols: usize) -> DMatrix<f64> {
+        DMatrix::from_fn(rows, cols, |_, _| self.normal())
+    }
+}
+
+/// A fixed pseudo-random system of dimension n: A scaled to spectral radius 1.05 (mildly unstable,
+/// like the paper's), C with max(1, n/2) rows, Q = BB'/n + 0.1 I, R = DD'/m + 0.2 I.
+fn random_system(n: usize) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>) {
+    let mut rng = Rng(0x5EED_0000 + n as u64);
+    let m = (n / 2).max(1);
+    let mut a = rng.matrix(n, n);
+    let rho = spectral_radius(&a).expect("eigenvalues");
+    a *= 1.05 / rho;
+    let c = rng.matrix(m, n);
+    let b = rng.matrix(n, n);
+    let q = &b * b.transpose() / n as f64 + DMatrix::identity(n, n) * 0.1;
+    let d = rng.matrix(m, m);
+    let r = &d * d.transpose() / m as f64 + DMatrix::identity(m, m) * 0.2;
+    (a, c, q, r)
+}
+
+fn bench_pbar(c: &mut Criterion) {
+    let mut g = c.benchmark_group("pbar");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(2));
+    for n in [1usize, 10, 50, 200] {
+        let sys = random_system(n);
+        // Fail loudly here rather than time an error path.
+        let check = LinearSystem::new(sys.0.clone(), sys.1.clone(), sys.2.clone(), sys.3.clone())
+            .expect("random system is detectable");
+        assert!(
+            check.residual() < 1e-9,
+            "n = {n}: residual {}",
+            check.residual()
+        );
+        if n == 200 {
+            g.sampling_mode(SamplingMode::Flat);
+        }
+        g.bench_with_input(
+            BenchmarkId::new("LinearSystem::new", format!("n_x={n}")),
+            &sys,
+            |b, s| {
+                b.iter_batched(
+                    || s.clone(),
+                    |(a, cm, q, r)| black_box(LinearSystem::new(a, cm, q, r).unwrap()),
+                    criterion::BatchSize::LargeInput,
+                )
+            },
+        );
+    }
+    g.finish();
+}
+
+fn bench_stationary(c: &mut Criterion) {
+    let sys = paper_system();
+    let mut g = c.benchmark_group("stationary");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(3))
+        .sampling_mode(SamplingMode::Flat);
+    for (label, z0, r, t) in CHAINS {
+        let ch = AttackChain::new(LAM, z0, r, t).unwrap();
+        let n = chain::num_states(z0, r, t);
+        g.throughput(Throughput::Elements(n as u64));
+        g.bench_with_input(
+            BenchmarkId::new("structured+j_attack", format!("S={label} ({n})")),
+            &ch,
+            |b, ch| {
+                b.iter(|| {
+                    let pi = stationary::structured(black_box(ch)).unwrap();
+                    let w = sys.weighted_traces(1.0 - ch.lam, (ch.z0 * (ch.r + 1)) as usize);
+                    let j = stationary::j_attack(ch, &w).unwrap();
+                    black_box((pi, j))
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
+fn bench_sweep(c: &mut Criterion) {
+    let sys = paper_system();
+    let mut g = c.benchmark_group("sweep");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(5))
+        .sampling_mode(SamplingMode::Flat);
+    for t_max in [1_000u64, 10_000] {
+        let fractions = sweep::farey_count(t_max);
+        g.throughput(Throughput::Elements(fractions as u64));
+        g.bench_with_input(
+            BenchmarkId::new("segments+sweep", format!("t_max={t_max}")),
+            &t_max,
+            |b, &tm| {
+                b.iter(|| {
+                    let seg = Segments::for_system(&sys, LAM, 2, 1.0, tm - 1).unwrap();
+                    black_box(sweep::sweep(&seg, black_box(tm)).unwrap())
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
+fn mc_config(mode: Mode, runs: u64, horizon: usize) -> McConfig {
+    // Block the first r = 1 of every t = 5 flag-ACKs.
+    McConfig {
+        lam: LAM,
+        schedule: McSchedule::Online { z0: 2, mu: 1.0 },
+        attack: Some(vec![true, false, false, false, false]),
+        mode,
+        protocol: Protocol::B,
+        horizon,
+        runs,
+        seed: 1,
+    }
+}
+
+fn bench_montecarlo(c: &mut Criterion) {
+    let sys = paper_system();
+    let mut g = c.benchmark_group("montecarlo");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(4))
+        .sampling_mode(SamplingMode::Flat);
+    for (name, mode, runs, horizon) in [
+        ("covariance", Mode::Covariance, 65_536u64, 1_000usize),
+        ("state", Mode::State, 4_096, 1_000),
+    ] {
+        let cfg = mc_config(mode, runs, horizon);
+        g.throughput(Throughput::Elements(runs * horizon as u64));
+        g.bench_with_input(
+            BenchmarkId::new(name, format!("{runs}x{horizon}")),
+            &cfg,
+            |b, cfg| {
+                b.iter(|| {
+                    let out = montecarlo::simulate(
+                        &sys,
+                        cfg,
+                        &AtomicBool::new(false),
+                        &AtomicU64::new(0),
+                    )
+                    .unwrap();
+                    black_box(out.j)
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_pbar,
+    bench_stationary,
+    bench_sweep,
+    bench_montecarlo
+);
+criterion_main!(benches);
