@@ -185,6 +185,7 @@ fn mc_config(mode: Mode, runs: u64, horizon: usize) -> McConfig {
         horizon,
         runs,
         seed: 1,
+        record_runs: false,
     }
 }
 

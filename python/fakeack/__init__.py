@@ -15,6 +15,15 @@ from .attack import (
     stationary_distribution,
     stationary_gth,
 )
+from .detection import (
+    Detection,
+    DetectionRates,
+    delivered_flag_rate,
+    detect_attack,
+    detection_rates,
+    estimate_beta,
+    flag_interval_moments,
+)
 from .montecarlo import (
     AttackPattern,
     OfflineSchedule,
@@ -51,6 +60,13 @@ from .threshold import (
 __version__ = "0.1.0"
 
 __all__ = [
+    "Detection",
+    "DetectionRates",
+    "delivered_flag_rate",
+    "detect_attack",
+    "detection_rates",
+    "estimate_beta",
+    "flag_interval_moments",
     "AttackPattern",
     "OfflineSchedule",
     "OnlineSchedule",

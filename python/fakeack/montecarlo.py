@@ -119,12 +119,18 @@ def _attack_mask(attack: Any) -> list[bool] | None:
     )
 
 
-def _schedule(sched: Any) -> OfflineSchedule | OnlineSchedule:
+def _schedule_and_mask(
+    sched: Any, attack: Any
+) -> tuple[OfflineSchedule | OnlineSchedule, list[bool] | None]:
+    """Validated schedule and blocking mask (None: no attacker); offline schedules take none."""
     if not isinstance(sched, (OfflineSchedule, OnlineSchedule)):
         raise TypeError(
             f"sched must be a fakeack.OfflineSchedule or fakeack.OnlineSchedule, got {type(sched).__name__}"
         )
-    return sched
+    mask = _attack_mask(attack)
+    if isinstance(sched, OfflineSchedule) and mask is not None:
+        raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
+    return sched, mask
 
 
 @dataclass(frozen=True)
@@ -166,12 +172,9 @@ def expected_trace_curve(
     """
     core = _core(system)
     lam = as_probability("lam", lam)
-    sched = _schedule(sched)
+    sched, mask = _schedule_and_mask(sched, attack)
     horizon = as_int("horizon", horizon, minimum=1)
-    mask = _attack_mask(attack)
     if isinstance(sched, OfflineSchedule):
-        if mask is not None:
-            raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
         trace = core.curve_offline(lam, sched.pattern.astype(np.uint8).tolist(), horizon)
     else:
         if mask is not None and all(mask):
@@ -206,6 +209,8 @@ class SimulationResult:
     protocol: str
     schedule: str = field(default="")
     attack: str = field(default="none")
+    delivered_per_run: np.ndarray | None = field(default=None, repr=False)
+    """Flag-ACKs delivered to the sensor in each run (only with ``record_runs=True``)."""
 
     def __str__(self) -> str:
         return (
@@ -251,6 +256,7 @@ def simulate(
     mode: str = "covariance",
     protocol: str = "B",
     progress: bool | None = None,
+    record_runs: bool = False,
 ) -> SimulationResult:
     r"""Monte Carlo of the real protocol: sensor, lossy channel, event detector, attacker.
 
@@ -284,6 +290,10 @@ def simulate(
         flips. The statistics are identical (Sec. IV-A).
     progress : bool or None
         Show a tqdm bar for runs over a second; ``None`` (default) shows it only on a terminal.
+    record_runs : bool
+        Also return each run's count of delivered flag-ACKs (``delivered_per_run``; 8 bytes per
+        run, the one output whose memory grows with ``runs``), as used by
+        :func:`fakeack.detection_rates`.
 
     Returns
     -------
@@ -296,7 +306,7 @@ def simulate(
     """
     core = _core(system)
     lam = as_probability("lam", lam)
-    sched = _schedule(sched)
+    sched, mask = _schedule_and_mask(sched, attack)
     horizon = as_int("horizon", horizon, minimum=1)
     runs = as_int("runs", runs, minimum=1)
     seed = as_int("seed", seed, minimum=0)
@@ -306,17 +316,15 @@ def simulate(
         raise ValueError(f"mode must be 'covariance' or 'state', got {mode!r}")
     if protocol not in ("A", "B"):
         raise ValueError(f"protocol must be 'A' or 'B', got {protocol!r}")
-    mask = _attack_mask(attack)
     if isinstance(sched, OfflineSchedule):
-        if mask is not None:
-            raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
         kind, pattern, z0, mu = "offline", sched.pattern.astype(np.uint8).tolist(), 1, 1.0
     else:
         kind, pattern, z0, mu = "online", [], sched.z0, sched.mu
     bar = _Progress(runs, progress)
     try:
         out = _fakeack.simulate(
-            core, lam, kind, pattern, z0, mu, mask, mode, protocol, horizon, runs, seed, bar
+            core, lam, kind, pattern, z0, mu, mask, mode, protocol, horizon, runs, seed, bar,
+            bool(record_runs),
         )
     finally:
         bar.close()
@@ -335,4 +343,5 @@ def simulate(
         protocol=protocol,
         schedule=str(sched),
         attack="none" if mask is None else str(AttackPattern(mask)),
+        delivered_per_run=out["delivered_per_run"] if record_runs else None,
     )

@@ -161,9 +161,24 @@ impl PySystem {
         mask: Vec<bool>,
     ) -> PyResult<f64> {
         py.detach(|| {
-            let kmax = pattern::longest_cyclic_run(&mask).min(mask.len().saturating_sub(1));
-            let seg = Segments::for_system(&self.inner, lam, z0, mu, kmax as u64)?;
+            let seg = Segments::for_mask(&self.inner, lam, z0, mu, &mask)?;
             seg.j_mask(&mask)
+        })
+        .map_err(Into::into)
+    }
+
+    /// (flag-ACKs sent, delivered) per step under a blocking mask.
+    fn flag_rates(
+        &self,
+        py: Python<'_>,
+        lam: f64,
+        z0: u64,
+        mu: f64,
+        mask: Vec<bool>,
+    ) -> PyResult<(f64, f64)> {
+        py.detach(|| {
+            let seg = Segments::for_mask(&self.inner, lam, z0, mu, &mask)?;
+            seg.flag_rates(&mask)
         })
         .map_err(Into::into)
     }
@@ -466,6 +481,7 @@ fn simulate<'py>(
     runs: u64,
     seed: u64,
     progress: Bound<'py, PyAny>,
+    record_runs: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let schedule = match kind {
         "offline" => McSchedule::Offline { pattern },
@@ -503,6 +519,7 @@ fn simulate<'py>(
         horizon,
         runs,
         seed,
+        record_runs,
     };
     let sys = system.get().inner.clone();
     let cancel = AtomicBool::new(false);
@@ -544,6 +561,7 @@ fn simulate<'py>(
     out.set_item("flags_sent", res.flags_sent)?;
     out.set_item("flags_blocked", res.flags_blocked)?;
     out.set_item("steps", res.steps)?;
+    out.set_item("delivered_per_run", res.delivered_per_run.into_pyarray(py))?;
     Ok(out)
 }
 

@@ -89,9 +89,31 @@ impl Segments {
         Segments::new(&w, lam, z0, mu, kmax)
     }
 
+    /// Segments enough for a blocking mask (its longest cyclic run of blocked flags).
+    pub fn for_mask(sys: &LinearSystem, lam: f64, z0: u64, mu: f64, mask: &[bool]) -> Result<Self> {
+        let kmax = longest_cyclic_run(mask).min(mask.len().saturating_sub(1));
+        Segments::for_system(sys, lam, z0, mu, kmax as u64)
+    }
+
     /// J of the walk with a blocking mask over the attacker's counter (true = blocked).
     /// Every mask must leave at least one flag through.
     pub fn j_mask(&self, mask: &[bool]) -> Result<f64> {
+        let (num, den) = self.mask_sums(mask)?;
+        Ok(num / den)
+    }
+
+    /// Long-run flag-ACKs per step under a blocking mask: (sent by the detector, delivered to
+    /// the sensor). Each counter level is left at rate F = u / D, so t levels send t F and the
+    /// unblocked ones deliver (number of zeros in the mask) F.
+    pub fn flag_rates(&self, mask: &[bool]) -> Result<(f64, f64)> {
+        let (_, den) = self.mask_sums(mask)?;
+        let per_level = self.u / den;
+        let open = mask.iter().filter(|&&b| !b).count();
+        Ok((mask.len() as f64 * per_level, open as f64 * per_level))
+    }
+
+    /// (N, D) = (Σ_σ Σ_k c̃(σ-k) W_k, Σ_σ Σ_k c̃(σ-k) M_k) for a blocking mask.
+    fn mask_sums(&self, mask: &[bool]) -> Result<(f64, f64)> {
         let t = mask.len();
         if t == 0 {
             return Err(Error::invalid("mask", "must not be empty"));
@@ -119,8 +141,8 @@ impl Segments {
         let (mut num, mut den) = (0.0, 0.0);
         for sigma in 0..t {
             // Segment k lives in level σ iff the k flags before σ were all blocked.
-            let mut k = 0;
             // k < t always: the mask has an unblocked position, which ends the walk back.
+            let mut k = 0;
             loop {
                 let c = c_tilde((sigma + t - k) % t);
                 num += c * self.w[k];
@@ -131,7 +153,7 @@ impl Segments {
                 k += 1;
             }
         }
-        Ok(num / den)
+        Ok((num, den))
     }
 
     /// Cumulative quantities for "block the first r of every t": with
@@ -334,6 +356,17 @@ mod tests {
             let seg = Segments::new(&wtr(lam, 2000), lam, 2, mu, 600).unwrap();
             let total: f64 = seg.m.iter().sum();
             assert!((total - 1.0 / lam).abs() < 1e-10, "{mu}: {total}");
+        }
+    }
+
+    #[test]
+    fn flag_rates_match_online_rate() {
+        // No attack: delivered = sent = the online high-power rate (ERRATA item 2).
+        for &(lam, z0, mu) in &[(0.5, 2u64, 1.0), (0.3, 3, 0.4), (0.8, 1, 0.0)] {
+            let seg = Segments::new(&wtr(lam, 50), lam, z0, mu, 2).unwrap();
+            let (sent, delivered) = seg.flag_rates(&[false, false, false]).unwrap();
+            let expect = crate::schedules::online_high_power_rate(lam, z0, mu).unwrap();
+            assert!((sent - expect).abs() < 1e-14 && (delivered - expect).abs() < 1e-14);
         }
     }
 

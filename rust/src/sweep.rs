@@ -35,21 +35,62 @@ fn farey_bound(n: u64) -> u128 {
     n * n * 31 / 100 + n
 }
 
-/// All reduced r/t with 1 <= r < t <= n, in increasing order of r/t (Farey sequence).
+/// The reduced fractions r/t with 1 <= r < t <= n in increasing order (the Farey sequence of
+/// order n without its ends), O(1) per term by the next-term recurrence.
+pub struct Farey {
+    n: i64,
+    prev: (i64, i64),
+    cur: (i64, i64),
+}
+
+impl Farey {
+    pub fn new(n: u64) -> Self {
+        let n = n.max(1) as i64;
+        Farey {
+            n,
+            prev: (0, 1),
+            cur: (1, n),
+        }
+    }
+}
+
+impl Iterator for Farey {
+    type Item = (u32, u32);
+
+    fn next(&mut self) -> Option<(u32, u32)> {
+        let ((a, b), (c, d)) = (self.prev, self.cur);
+        if c >= d {
+            return None;
+        }
+        let k = (self.n + b) / d;
+        self.prev = (c, d);
+        self.cur = (k * c - a, k * d - b);
+        Some((c as u32, d as u32))
+    }
+}
+
+/// All reduced r/t with 1 <= r < t <= n, in increasing order of r/t.
 pub fn farey(n: u64) -> Vec<(u32, u32)> {
-    let mut out = Vec::new();
-    if n < 2 {
-        return out;
+    Farey::new(n).collect()
+}
+
+/// Checks t_max and returns the per-r offsets (a_r, b_r) and (W_0, M_0) a sweep needs.
+fn offsets(seg: &Segments, t_max: u64) -> Result<(Vec<f64>, Vec<f64>, f64, f64)> {
+    if t_max < 2 {
+        return Err(Error::invalid(
+            "t_max",
+            format!("must be at least 2, got {t_max}"),
+        ));
     }
-    let n = n as i64;
-    let (mut a, mut b, mut c, mut d) = (0i64, 1i64, 1i64, n);
-    while c < d {
-        out.push((c as u32, d as u32));
-        let k = (n + b) / d;
-        let (nc, nd) = (k * c - a, k * d - b);
-        (a, b, c, d) = (c, d, nc, nd);
+    let rmax = (t_max - 1) as usize;
+    if seg.w.len() <= rmax {
+        return Err(Error::invalid(
+            "t_max",
+            format!("needs segments up to {rmax}"),
+        ));
     }
-    out
+    let (a, b) = seg.first_r_offsets(rmax);
+    Ok((a, b, seg.w[0], seg.m[0]))
 }
 
 /// Result of a sweep: one entry per fraction, in increasing β.
@@ -63,12 +104,6 @@ pub struct Sweep {
 
 /// J(r, t) for every reduced r/t with t <= t_max. `seg` must hold segments 0..t_max-1.
 pub fn sweep(seg: &Segments, t_max: u64) -> Result<Sweep> {
-    if t_max < 2 {
-        return Err(Error::invalid(
-            "t_max",
-            format!("must be at least 2, got {t_max}"),
-        ));
-    }
     if t_max > u32::MAX as u64 || farey_bound(t_max) > MAX_FRACTIONS {
         return Err(Error::TooLarge {
             arg: "t_max".into(),
@@ -76,16 +111,8 @@ pub fn sweep(seg: &Segments, t_max: u64) -> Result<Sweep> {
             limit: MAX_FRACTIONS,
         });
     }
-    let rmax = (t_max - 1) as usize;
-    if seg.w.len() <= rmax {
-        return Err(Error::invalid(
-            "t_max",
-            format!("needs segments up to {rmax}"),
-        ));
-    }
-    let (a, b) = seg.first_r_offsets(rmax);
+    let (a, b, w0, m0) = offsets(seg, t_max)?;
     let fr = farey(t_max);
-    let (w0, m0) = (seg.w[0], seg.m[0]);
     let j: Vec<f64> = fr
         .par_iter()
         .with_min_len(1 << 16)
@@ -105,34 +132,11 @@ pub fn sweep(seg: &Segments, t_max: u64) -> Result<Sweep> {
 
 /// Smallest r/t (t <= t_max, lowest terms) with J(r, t) >= j_ref, without storing the sweep.
 pub fn first_crossing(seg: &Segments, t_max: u64, j_ref: f64) -> Result<Option<(u32, u32)>> {
-    if t_max < 2 {
-        return Err(Error::invalid(
-            "t_max",
-            format!("must be at least 2, got {t_max}"),
-        ));
-    }
-    let rmax = (t_max - 1) as usize;
-    if seg.w.len() <= rmax {
-        return Err(Error::invalid(
-            "t_max",
-            format!("needs segments up to {rmax}"),
-        ));
-    }
-    let (a, b) = seg.first_r_offsets(rmax);
-    let (w0, m0) = (seg.w[0], seg.m[0]);
-    let n = t_max as i64;
-    let (mut pa, mut pb, mut c, mut d) = (0i64, 1i64, 1i64, n);
-    while c < d {
-        let t = d as f64;
-        let j = (t * w0 + a[c as usize]) / (t * m0 + b[c as usize]);
-        if j >= j_ref {
-            return Ok(Some((c as u32, d as u32)));
-        }
-        let k = (n + pb) / d;
-        let (nc, nd) = (k * c - pa, k * d - pb);
-        (pa, pb, c, d) = (c, d, nc, nd);
-    }
-    Ok(None)
+    let (a, b, w0, m0) = offsets(seg, t_max)?;
+    Ok(Farey::new(t_max).find(|&(r, t)| {
+        let t = t as f64;
+        (t * w0 + a[r as usize]) / (t * m0 + b[r as usize]) >= j_ref
+    }))
 }
 
 #[cfg(test)]

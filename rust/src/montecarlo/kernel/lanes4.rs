@@ -1,0 +1,182 @@
+use super::{resolve_ties4, Proto, Xoshiro256pp, SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
+
+pub(super) type U = [u64; 4];
+pub(super) type F = [f64; 4];
+
+macro_rules! map {
+    (|$i:ident| $e:expr) => {{
+        let mut out = [Default::default(); 4];
+        for ($i, o) in out.iter_mut().enumerate() {
+            *o = $e;
+        }
+        out
+    }};
+}
+
+#[inline(always)]
+pub(super) fn splat(x: u64) -> U {
+    [x; 4]
+}
+#[inline(always)]
+pub(super) fn load(a: &[u64]) -> U {
+    [a[0], a[1], a[2], a[3]]
+}
+#[inline(always)]
+pub(super) fn store(a: &mut [u64], v: U) {
+    a[..4].copy_from_slice(&v);
+}
+#[inline(always)]
+pub(super) fn fload(a: &[f64]) -> F {
+    [a[0], a[1], a[2], a[3]]
+}
+#[inline(always)]
+pub(super) fn fstore(a: &mut [f64], v: F) {
+    a[..4].copy_from_slice(&v);
+}
+#[inline(always)]
+pub(super) fn add(a: U, b: U) -> U {
+    map!(|i| a[i].wrapping_add(b[i]))
+}
+#[inline(always)]
+pub(super) fn sub(a: U, b: U) -> U {
+    map!(|i| a[i].wrapping_sub(b[i]))
+}
+#[inline(always)]
+pub(super) fn and(a: U, b: U) -> U {
+    map!(|i| a[i] & b[i])
+}
+#[inline(always)]
+pub(super) fn or(a: U, b: U) -> U {
+    map!(|i| a[i] | b[i])
+}
+#[inline(always)]
+pub(super) fn xor(a: U, b: U) -> U {
+    map!(|i| a[i] ^ b[i])
+}
+/// `!a & b`.
+#[inline(always)]
+pub(super) fn andnot(a: U, b: U) -> U {
+    map!(|i| !a[i] & b[i])
+}
+#[inline(always)]
+pub(super) fn shr<const N: u32>(a: U) -> U {
+    map!(|i| a[i] >> N)
+}
+/// Signed a > b as a lane mask (lane values stay below 2^63).
+#[inline(always)]
+pub(super) fn gt(a: U, b: U) -> U {
+    map!(|i| if (a[i] as i64) > (b[i] as i64) {
+        u64::MAX
+    } else {
+        0
+    })
+}
+#[inline(always)]
+pub(super) fn eq(a: U, b: U) -> U {
+    map!(|i| if a[i] == b[i] { u64::MAX } else { 0 })
+}
+/// `m ? t : f` per lane.
+#[inline(always)]
+pub(super) fn blend(m: U, t: U, f: U) -> U {
+    map!(|i| if m[i] != 0 { t[i] } else { f[i] })
+}
+#[inline(always)]
+pub(super) fn fadd(a: F, b: F) -> F {
+    map!(|i| a[i] + b[i])
+}
+/// Bitwise `x & m` (keeps x where m is all ones, +0.0 where it is zero).
+#[inline(always)]
+pub(super) fn fmask(x: F, m: U) -> F {
+    map!(|i| f64::from_bits(x[i].to_bits() & m[i]))
+}
+/// Bit `c` of the blocking mask, 0 or 1 (`c < 64 mask.len()`).
+#[inline(always)]
+pub(super) fn mask_bit(mask: &[u64], c: U) -> U {
+    let last = mask.len().saturating_sub(1);
+    map!(|i| mask
+        .get(((c[i] >> 6) as usize).min(last))
+        .map_or(0, |w| (w >> (c[i] & 63)) & 1))
+}
+
+pub(super) struct Table<'a> {
+    tr: &'a [f64],
+    last: usize,
+}
+#[inline(always)]
+pub(super) fn table(tr: &[f64], last: u64) -> Table<'_> {
+    Table {
+        tr,
+        last: (last as usize).min(tr.len().saturating_sub(1)),
+    }
+}
+/// tr[min(τ, last)].
+#[inline(always)]
+pub(super) fn lookup(t: &Table, idx: U) -> F {
+    map!(|i| t
+        .tr
+        .get((idx[i] as usize).min(t.last))
+        .copied()
+        .unwrap_or(f64::INFINITY))
+}
+
+/// Four xoshiro256++ lanes and their current word of 16-bit slices.
+pub(super) struct Stream {
+    s: [U; 4],
+    bits: U,
+    avail: u32,
+}
+
+impl Stream {
+    #[inline(always)]
+    pub(super) fn load(p: &Proto, lo: usize, avail: u32) -> Self {
+        Stream {
+            s: [
+                load(&p.s0[lo..]),
+                load(&p.s1[lo..]),
+                load(&p.s2[lo..]),
+                load(&p.s3[lo..]),
+            ],
+            bits: load(&p.bits[lo..]),
+            avail,
+        }
+    }
+    #[inline(always)]
+    pub(super) fn store(&self, p: &mut Proto, lo: usize) -> u32 {
+        store(&mut p.s0[lo..], self.s[0]);
+        store(&mut p.s1[lo..], self.s[1]);
+        store(&mut p.s2[lo..], self.s[2]);
+        store(&mut p.s3[lo..], self.s[3]);
+        store(&mut p.bits[lo..], self.bits);
+        self.avail
+    }
+    /// An exact Bernoulli(T / 2^64) draw per lane, T = thr·2^48 + lo, as a lane mask.
+    #[inline(always)]
+    pub(super) fn draw(&mut self, thr: U, lo: u64, side: &mut [Xoshiro256pp]) -> U {
+        if self.avail == 0 {
+            let [s0, s1, s2, s3] = &mut self.s;
+            for i in 0..4 {
+                self.bits[i] = s0[i]
+                    .wrapping_add(s3[i])
+                    .rotate_left(23)
+                    .wrapping_add(s0[i]);
+                let t = s1[i] << 17;
+                s2[i] ^= s0[i];
+                s3[i] ^= s1[i];
+                s1[i] ^= s2[i];
+                s0[i] ^= s3[i];
+                s2[i] ^= t;
+                s3[i] = s3[i].rotate_left(45);
+            }
+            self.avail = SLICES_PER_WORD;
+        }
+        self.avail -= 1;
+        let u = and(self.bits, splat(SLICE_MASK));
+        self.bits = shr::<SLICE_BITS>(self.bits);
+        let mut hit = gt(thr, u);
+        let tie = eq(u, thr);
+        if tie.iter().any(|&t| t != 0) {
+            resolve_ties4(&mut hit, &tie, side, lo);
+        }
+        hit
+    }
+}

@@ -1,0 +1,238 @@
+//! State mode ([`Mode::State`](super::Mode::State)): the error recursions with real Gaussian
+//! noise, run on the same lock-step protocol ([`Proto`]) as the covariance kernels.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use nalgebra::DMatrix;
+
+use super::kernel::{lane_sum, Params, Proto, Tile, TileOut};
+use super::{CHUNK_STEPS, LANES};
+use crate::error::{Error, Result};
+use crate::riccati::LinearSystem;
+
+// ---------------------------------------------------------------------------------------------
+// State-mode model.
+
+/// Row-major dense matrices of the error recursions, with noise factors Lq (n × rq, Q = Lq Lq'),
+/// Lr (m × m) and Lp (n × rp, P̄ = Lp Lp').
+pub(super) struct StateModel {
+    n: usize,
+    m: usize,
+    rq: usize,
+    rp: usize,
+    /// A.
+    a: Vec<f64>,
+    /// (I - KC) A.
+    f: Vec<f64>,
+    /// (I - KC) Lq.
+    g: Vec<f64>,
+    /// K Lr.
+    h: Vec<f64>,
+    lq: Vec<f64>,
+    lp: Vec<f64>,
+}
+
+/// A factor L (n × rank) with L L' = X for a symmetric PSD X, from its eigen-decomposition
+/// (negative round-off eigenvalues are dropped), so singular X is fine.
+fn psd_factor(arg: &str, x: &DMatrix<f64>) -> Result<(Vec<f64>, usize)> {
+    let n = x.nrows();
+    let sym = (x + x.transpose()) * 0.5;
+    let eig = nalgebra::linalg::SymmetricEigen::try_new(sym, f64::EPSILON, 10_000).ok_or(
+        Error::NotConverged {
+            what: "symmetric eigen-decomposition of a noise covariance",
+            iterations: 10_000,
+            residual: f64::NAN,
+        },
+    )?;
+    let top = eig.eigenvalues.iter().copied().fold(0.0, f64::max);
+    if !top.is_finite() {
+        return Err(Error::invalid(arg, "has a non-finite eigenvalue"));
+    }
+    let keep: Vec<usize> = (0..n)
+        .filter(|&j| eig.eigenvalues[j] > top * 1e-14 && eig.eigenvalues[j] > 0.0)
+        .collect();
+    let rank = keep.len();
+    let mut l = vec![0.0; n * rank];
+    for (c, &j) in keep.iter().enumerate() {
+        let s = eig.eigenvalues[j].sqrt();
+        for i in 0..n {
+            l[i * rank + c] = eig.eigenvectors[(i, j)] * s;
+        }
+    }
+    Ok((l, rank))
+}
+
+fn row_major(x: &DMatrix<f64>) -> Vec<f64> {
+    let mut out = Vec::with_capacity(x.nrows() * x.ncols());
+    for i in 0..x.nrows() {
+        for j in 0..x.ncols() {
+            out.push(x[(i, j)]);
+        }
+    }
+    out
+}
+
+fn from_row_major(rows: usize, cols: usize, v: &[f64]) -> DMatrix<f64> {
+    DMatrix::from_row_slice(rows, cols, v)
+}
+
+impl StateModel {
+    pub(super) fn new(sys: &LinearSystem) -> Result<Self> {
+        let (a, c, q, r, pbar) = (sys.a(), sys.c(), sys.q(), sys.r(), sys.pbar());
+        let n = sys.n();
+        let m = c.nrows();
+        let prior = a * pbar * a.transpose() + q;
+        let s = c * &prior * c.transpose() + r;
+        let chol = s
+            .cholesky()
+            .ok_or_else(|| Error::invalid("R", "C P⁻ C' + R is not positive definite"))?;
+        // K = P⁻ C' S^{-1} = (S^{-1} C P⁻)'.
+        let k = chol.solve(&(c * &prior)).transpose();
+        let mkc = DMatrix::<f64>::identity(n, n) - &k * c;
+        let (lq, rq) = psd_factor("Q", q)?;
+        let (lr, rr) = psd_factor("R", r)?;
+        if rr != m {
+            return Err(Error::invalid("R", "must be positive definite"));
+        }
+        let (lp, rp) = psd_factor("P̄", pbar)?;
+        let lq_m = from_row_major(n, rq, &lq);
+        let lr_m = from_row_major(m, m, &lr);
+        let model = StateModel {
+            n,
+            m,
+            rq,
+            rp,
+            a: row_major(a),
+            f: row_major(&(&mkc * a)),
+            g: row_major(&(&mkc * &lq_m)),
+            h: row_major(&(&k * &lr_m)),
+            lq,
+            lp,
+        };
+        if [&model.f, &model.g, &model.h]
+            .iter()
+            .any(|v| v.iter().any(|x| !x.is_finite()))
+        {
+            return Err(Error::invalid("sys", "the Kalman gain is not finite"));
+        }
+        Ok(model)
+    }
+}
+
+#[inline(always)]
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The state-mode coefficients of a scalar system (n = m = 1).
+struct Scalar {
+    a: f64,
+    f: f64,
+    g: f64,
+    h: f64,
+    lq: f64,
+}
+
+pub(super) fn state_tile_impl<
+    const ONLINE: bool,
+    const MU_DRAW: bool,
+    const ATTACK: bool,
+    const PROTO_A: bool,
+>(
+    p: &Params,
+    model: &StateModel,
+    tile: &mut Tile,
+    cancel: &AtomicBool,
+) -> Result<TileOut> {
+    let (n, m, rq, rp) = (model.n, model.m, model.rq, model.rp);
+    let mut proto = Proto::new(&tile.seeds);
+    let side = &mut tile.side;
+    let noise = &mut tile.noise;
+    // Lane-major error vectors.
+    let mut es = vec![0.0; LANES * n];
+    let mut e = vec![0.0; LANES * n];
+    let mut es_new = vec![0.0; n];
+    let mut e_new = vec![0.0; n];
+    let mut zw = vec![0.0; rq];
+    let mut zv = vec![0.0; m];
+    let mut zp = vec![0.0; rp];
+    for l in 0..LANES {
+        // e^s_0 ~ N(0, P̄).
+        for z in zp.iter_mut() {
+            *z = noise[l].normal();
+        }
+        for (i, out) in es[l * n..(l + 1) * n].iter_mut().enumerate() {
+            *out = dot(&model.lp[i * rp..(i + 1) * rp], &zp);
+        }
+    }
+    let scalar = (n == 1 && m == 1).then(|| Scalar {
+        a: model.a[0],
+        f: model.f[0],
+        g: model.g.first().copied().unwrap_or(0.0),
+        h: model.h[0],
+        lq: model.lq.first().copied().unwrap_or(0.0),
+    });
+    let mut sum = [0.0f64; LANES];
+    for chunk in tile.acc.chunks_mut((CHUNK_STEPS / (n * n).max(1)).max(1)) {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(Error::Interrupted);
+        }
+        for acc in chunk.iter_mut() {
+            let arrive = proto.step::<ONLINE, MU_DRAW, ATTACK, PROTO_A>(p, side);
+            let mut v = [0.0f64; LANES];
+            for l in 0..LANES {
+                let x = if let Some(sc) = &scalar {
+                    // n = m = 1: the same recursions on plain numbers.
+                    let zw = if rq == 1 { noise[l].normal() } else { 0.0 };
+                    let zv = noise[l].normal();
+                    let esn = sc.f * es[l] + sc.g * zw - sc.h * zv;
+                    es[l] = esn;
+                    e[l] = if arrive[l] != 0 {
+                        esn
+                    } else {
+                        sc.a * e[l] + sc.lq * zw
+                    };
+                    e[l] * e[l]
+                } else {
+                    for z in zw.iter_mut() {
+                        *z = noise[l].normal();
+                    }
+                    for z in zv.iter_mut() {
+                        *z = noise[l].normal();
+                    }
+                    let es_l = &mut es[l * n..(l + 1) * n];
+                    let e_l = &mut e[l * n..(l + 1) * n];
+                    // e^s_k = (I-KC) A e^s_{k-1} + (I-KC) w_{k-1} - K v_k.
+                    for (i, out) in es_new.iter_mut().enumerate() {
+                        *out = dot(&model.f[i * n..(i + 1) * n], es_l)
+                            + dot(&model.g[i * rq..(i + 1) * rq], &zw)
+                            - dot(&model.h[i * m..(i + 1) * m], &zv);
+                    }
+                    es_l.copy_from_slice(&es_new);
+                    if arrive[l] != 0 {
+                        e_l.copy_from_slice(&es_new);
+                    } else {
+                        // e_k = A e_{k-1} + w_{k-1}.
+                        for (i, out) in e_new.iter_mut().enumerate() {
+                            *out = dot(&model.a[i * n..(i + 1) * n], e_l)
+                                + dot(&model.lq[i * rq..(i + 1) * rq], &zw);
+                        }
+                        e_l.copy_from_slice(&e_new);
+                    }
+                    e_l.iter().map(|y| y * y).sum()
+                };
+                // Only an overflowed error gives NaN (inf - inf); report it as +inf.
+                let x = if x.is_nan() { f64::INFINITY } else { x };
+                sum[l] += x;
+                v[l] = f64::from_bits(x.to_bits() & tile.active[l]);
+            }
+            *acc += lane_sum(&v);
+        }
+    }
+    Ok(TileOut {
+        sum,
+        sent: proto.sent,
+        blocked: proto.blocked,
+        hi_last: proto.hi,
+    })
+}
