@@ -101,8 +101,9 @@ def estimate_beta(delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0
     :math:`\rho(\beta) = (1-\beta)/(\beta/f_{blk} + (1-\beta)/f_{on})`, decreasing in β. Inverting
     at the observed rate gives
     :math:`\hat\beta = (1 - \hat\rho/f_{on}) / (1 + \hat\rho/f_{blk} - \hat\rho/f_{on})`, clipped to
-    [0, 1]. For short periods it is biased low (short blocked runs cost less time); the simulated
-    bias is reported by :func:`detection_rates`.
+    [0, 1]. It assumes the observation window spans many attack periods; for the paper's short
+    patterns the model is close (1000-step windows: mean estimate 0.203 at r/t = 1/5, 0.669 at 2/3);
+    :func:`detection_rates` reports the simulated mean and spread.
     """
     lam, z0, mu = _online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1)
