@@ -231,3 +231,22 @@ def test_fuzz_only_documented_errors(paper, name, data):
             assert not math.isnan(v)
         if isinstance(v, np.ndarray) and v.dtype.kind == "f":
             assert not np.isnan(v).any()
+
+
+def test_lambda_below_double_resolution(paper):
+    # 1 - lam rounds to 1 for lam < 1e-16; every formula keeps its precision (expm1/log1p).
+    lam = 1e-20
+    assert fa.online_high_power_rate(lam, 2) == pytest.approx(1 / 3, rel=1e-12)
+    tr = paper.h_traces(3)
+    assert fa.j_online(paper, lam, 2) == pytest.approx(tr[:3].mean(), rel=1e-12)
+    z0, mu = fa.design_online(lam, Fraction(1, 4))  # f(3, 1) = (1 - O(lam))/4 falls just short
+    assert fa.online_high_power_rate(lam, z0, mu) == pytest.approx(0.25, rel=1e-12)
+    assert np.isfinite(fa.j_attack(paper, lam, 2, 1, 3))
+
+
+def test_design_online_long_memory_float_path():
+    # z0 ~ 10^4 is settled in floating point; the budget is still met.
+    lam, ratio = Fraction(72, 65143), Fraction(51, 2405865224)
+    z0, mu = fa.design_online(lam, ratio)
+    assert z0 > 2000 and 0 <= mu <= 1
+    assert fa.online_high_power_rate(float(lam), z0, mu) == pytest.approx(float(ratio), rel=1e-8)

@@ -86,10 +86,12 @@ def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) ->
 
 def _regime_rates(lam: float, z0: int, mu: float) -> tuple[float, float]:
     """(f_on, f_blk): flags per step unattacked and with every flag blocked."""
-    a = 1.0 - lam
-    u = a**z0 * (mu + (1.0 - mu) * a)
+    ln_a = math.log1p(-lam)
+    az0 = math.exp(z0 * ln_a)
+    u = az0 * (mu + (1.0 - mu) * (1.0 - lam))
+    one_minus_u = -math.expm1(z0 * ln_a) + az0 * (1.0 - mu) * lam  # no cancellation for tiny lam
     f_on = _core(_any_system()).flag_rates(lam, z0, mu, [False])[0]
-    return f_on, lam * u / (1.0 - u)
+    return f_on, lam * u / one_minus_u
 
 
 def estimate_beta(delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:

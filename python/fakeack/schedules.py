@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 from typing import Any, NamedTuple
 
@@ -217,24 +218,63 @@ def design_online(lam: Any, ratio: Any) -> OnlineDesign:
     lam_q = as_fraction("lam", lam)
     rho = as_ratio("ratio", ratio)
     one = Fraction(1)
-    if rho > _rate_exact(lam_q, 1, one):
-        top = _rate_exact(lam_q, 1, one)
+    top = _rate_exact(lam_q, 1, one)
+    if rho > top:
         raise ValueError(
             f"ratio {rho} exceeds the largest high-power rate an online schedule with z0 >= 1 can "
             f"use at lam={lam_f} ({float(top):.6g} = (1-lam)/(2-lam))"
         )
-    z0 = 1
-    while _rate_exact(lam_q, z0 + 1, one) >= rho:
-        z0 += 1
-    # Now f(z0+1, 1) < rho <= f(z0, 1).
-    if _rate_exact(lam_q, z0, one) == rho:
-        return OnlineDesign(z0, 1.0)
-    a = 1 - lam_q
-    # Solve f(z0, mu) = rho for mu (linear-fractional in mu).
-    mu = (rho * (1 - a ** (z0 + 2)) - lam_q * a ** (z0 + 1)) / (
-        (1 - a) * a**z0 * (lam_q + rho * a)
+    # f(z, 1) falls geometrically in z: bracket z0 in floats (bisection), then settle the boundary
+    # exactly, where exact powers stay cheap.
+    z0 = _largest_z_float(lam_f, float(rho))
+    if z0 > MAX_DESIGN_Z0:
+        raise ValueError(
+            f"ratio {rho} is so small that the online schedule would need a memory of about {z0} "
+            f"steps (more than {MAX_DESIGN_Z0})"
+        )
+    if z0 <= EXACT_DESIGN_Z0:
+        z0 = max(1, z0 - 1)
+        while _rate_exact(lam_q, z0 + 1, one) >= rho:
+            z0 += 1
+        # Now f(z0+1, 1) < rho <= f(z0, 1).
+        if _rate_exact(lam_q, z0, one) == rho:
+            return OnlineDesign(z0, 1.0)
+        a = 1 - lam_q
+        mu_q = (rho * (1 - a ** (z0 + 2)) - lam_q * a ** (z0 + 1)) / (
+            (1 - a) * a**z0 * (lam_q + rho * a)
+        )
+        return OnlineDesign(z0, float(mu_q))
+    rf, ln_a = float(rho), math.log1p(-lam_f)
+    apow = math.exp(z0 * ln_a)
+    mu = (rf * -math.expm1((z0 + 2) * ln_a) - lam_f * apow * (1.0 - lam_f)) / (
+        lam_f * apow * (lam_f + rf * (1.0 - lam_f))
     )
-    return OnlineDesign(z0, float(mu))
+    return OnlineDesign(z0, min(max(mu, 0.0), 1.0))
+
+
+#: Largest memory design_online returns, and the largest it settles in exact arithmetic.
+MAX_DESIGN_Z0 = 1_000_000
+EXACT_DESIGN_Z0 = 2_000
+
+
+def _largest_z_float(lam: float, rho: float) -> int:
+    """Largest z >= 1 with f(z, 1) >= rho in floating point (bisection; f falls in z)."""
+    ln_a = math.log1p(-lam)
+
+    def f(z: int) -> float:
+        # 1 - a^(z+1) by expm1: for lam below 1e-16, 1 - lam rounds to 1.
+        return lam * math.exp(z * ln_a) / -math.expm1((z + 1) * ln_a)
+
+    lo, hi = 1, 2
+    while f(hi) >= rho and hi < 2**40:
+        lo, hi = hi, hi * 2
+    while hi - lo > 1:
+        mid = (lo + hi) // 2
+        if f(mid) >= rho:
+            lo = mid
+        else:
+            hi = mid
+    return lo
 
 
 def j_max(s: Any, lam: Any) -> float:

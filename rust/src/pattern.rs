@@ -16,6 +16,7 @@
 
 use crate::error::{check_lam, check_mu, Error, Result};
 use crate::riccati::LinearSystem;
+use crate::schedules::{apow, one_minus_u};
 
 /// Largest segment index for μ < 1, where building the segments costs O(kmax²).
 pub const MAX_SEGMENTS_MIXED: u64 = 20_000;
@@ -25,6 +26,8 @@ pub const MAX_SEGMENTS_MIXED: u64 = 20_000;
 pub struct Segments {
     /// u = a^z0 (μ + (1-μ) a): probability of a flag before the next arrival.
     pub u: f64,
+    /// 1 - u, computed without cancellation (tiny λ).
+    pub one_minus_u: f64,
     /// W_k: segment k's sum of a^τ Tr h^τ(P̄) (times the path weights).
     pub w: Vec<f64>,
     /// M_k: segment k's sum of a^τ (times the path weights): expected steps spent there.
@@ -61,13 +64,18 @@ impl Segments {
             return Err(Error::invalid("w", format!("needs {need} weighted traces")));
         }
         let a = 1.0 - lam;
-        let u = a.powf(z0 as f64) * (mu + (1.0 - mu) * a);
-        let mass: Vec<f64> = (0..need).map(|tau| a.powf(tau as f64)).collect();
+        let u = apow(lam, z0) * (mu + (1.0 - mu) * a);
+        let mass: Vec<f64> = (0..need).map(|tau| apow(lam, tau as u64)).collect();
         let (w, m) = (
             segment_sums(&wtr[..need], z0, mu, kmax),
             segment_sums(&mass, z0, mu, kmax),
         );
-        Ok(Segments { u, w, m })
+        Ok(Segments {
+            u,
+            one_minus_u: one_minus_u(lam, z0, mu),
+            w,
+            m,
+        })
     }
 
     /// Segments 0..=kmax for a system, computing the weighted traces it needs (refused before
@@ -133,7 +141,7 @@ impl Segments {
         }
         let c_tilde = |j: usize| {
             if mask[(j + t - 1) % t] {
-                1.0 - self.u
+                self.one_minus_u
             } else {
                 1.0
             }
@@ -160,7 +168,7 @@ impl Segments {
     /// `a_r = Σ_{σ=1..r} W_σ + (1-u) Σ_{k<r} (r-k) W_k - r W_0` (and `b_r` the same for M),
     /// J(r, t) = (t W_0 + a_r) / (t M_0 + b_r). Returns (a_r, b_r) for r = 0..=rmax.
     pub fn first_r_offsets(&self, rmax: usize) -> (Vec<f64>, Vec<f64>) {
-        let one_minus_u = 1.0 - self.u;
+        let one_minus_u = self.one_minus_u;
         let run = |v: &[f64]| -> Vec<f64> {
             let mut out = Vec::with_capacity(rmax + 1);
             let (mut head, mut tail, mut partial) = (0.0, 0.0, 0.0);
@@ -296,7 +304,7 @@ pub fn j_limit(seg: &Segments, lam: f64, j_max: f64, beta: f64) -> Result<f64> {
     if j_max.is_infinite() {
         return Ok(f64::INFINITY);
     }
-    let blk = beta * (1.0 - seg.u) / lam;
+    let blk = beta * seg.one_minus_u / lam;
     Ok(((1.0 - beta) * seg.w[0] + blk * j_max) / ((1.0 - beta) * seg.m[0] + blk))
 }
 
@@ -309,7 +317,7 @@ pub fn beta_limit_threshold(seg: &Segments, lam: f64, j_max: f64, j_ref: f64) ->
     if gain <= 0.0 || j_max.is_infinite() {
         return 0.0;
     }
-    let loss = (1.0 - seg.u) / lam * (j_max - j_ref);
+    let loss = seg.one_minus_u / lam * (j_max - j_ref);
     if loss <= 0.0 {
         return 1.0;
     }

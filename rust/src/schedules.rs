@@ -74,14 +74,27 @@ pub fn j_offline(w: &[f64], lam: f64, p: u64, q: u64) -> Result<f64> {
     Ok(total / q as f64)
 }
 
-/// The probability a^k for the holding time to reach k, with a = 1 - lam.
-fn apow(lam: f64, k: u64) -> f64 {
-    (1.0 - lam).powf(k as f64)
+/// a^k with a = 1 - lam, via exp(k ln(1 - lam)) so that tiny lam keeps its precision.
+pub(crate) fn apow(lam: f64, k: u64) -> f64 {
+    (k as f64 * (-lam).ln_1p()).exp()
 }
 
-/// Denominator 1 - μ a^(z0+1) - (1-μ) a^(z0+2) of the online formulas (ERRATA item 2).
+/// 1 - a^k without cancellation: for lam below ~1e-16, 1 - lam rounds to 1 and the naive
+/// difference would be 0 (a division by zero in every cost).
+pub(crate) fn one_minus_apow(lam: f64, k: u64) -> f64 {
+    -(k as f64 * (-lam).ln_1p()).exp_m1()
+}
+
+/// 1 - u with u = a^z0 (μ + (1-μ) a), the chance of a flag before the next arrival:
+/// (1 - a^z0) + a^z0 (1-μ) λ.
+pub(crate) fn one_minus_u(lam: f64, z0: u64, mu: f64) -> f64 {
+    one_minus_apow(lam, z0) + apow(lam, z0) * (1.0 - mu) * lam
+}
+
+/// Denominator 1 - μ a^(z0+1) - (1-μ) a^(z0+2) of the online formulas (ERRATA item 2), as
+/// μ (1 - a^(z0+1)) + (1-μ) (1 - a^(z0+2)).
 fn online_denominator(lam: f64, z0: u64, mu: f64) -> f64 {
-    1.0 - mu * apow(lam, z0 + 1) - (1.0 - mu) * apow(lam, z0 + 2)
+    mu * one_minus_apow(lam, z0 + 1) + (1.0 - mu) * one_minus_apow(lam, z0 + 2)
 }
 
 /// Long-run fraction of high-power steps of the online schedule:
@@ -199,6 +212,14 @@ mod tests {
                 "{p}/{q}: {closed} vs {direct}"
             );
         }
+    }
+
+    #[test]
+    fn tiny_lambda_keeps_precision() {
+        // λ = 1e-20: 1 - λ rounds to 1, but the rate is λ a^z0 / (1 - a^(z0+1)) ≈ 1/(z0+1).
+        let r = online_high_power_rate(1e-20, 2, 1.0).unwrap();
+        assert!((r - 1.0 / 3.0).abs() < 1e-12, "{r}");
+        assert!((one_minus_u(1e-20, 3, 0.5) - 3.5e-20).abs() < 1e-32);
     }
 
     #[test]

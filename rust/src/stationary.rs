@@ -35,7 +35,7 @@ impl AttackChain {
         if j == 0 || j > self.r {
             1.0
         } else {
-            1.0 - (1.0 - self.lam).powf(self.z0 as f64)
+            crate::schedules::one_minus_apow(self.lam, self.z0)
         }
     }
 
