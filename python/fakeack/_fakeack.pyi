@@ -1,16 +1,33 @@
 """Type stubs for the compiled core ``fakeack._fakeack`` (PyO3). Use the public API in ``fakeack``."""
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, final
 
 import numpy as np
 import numpy.typing as npt
+
+__all__ = [
+    "ConvergenceError",
+    "MAX_BUILD_STATES",
+    "MAX_VECTOR_STATES",
+    "System",
+    "attack_chain",
+    "balance_residual",
+    "general_chain",
+    "num_states",
+    "offline_schedule",
+    "online_high_power_rate",
+    "simulate",
+    "stationary_gth",
+    "stationary_structured",
+]
 
 MAX_BUILD_STATES: int
 MAX_VECTOR_STATES: int
 
 class ConvergenceError(ValueError): ...
 
+@final
 class System:
     def __new__(
         cls,
