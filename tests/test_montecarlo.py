@@ -209,3 +209,13 @@ def test_offline_rejects_attack(paper):
         fa.simulate(paper, 0.5, fa.OfflineSchedule(PAPER_RATIO), 10, 10, attack=(1, 2))
     with pytest.raises(TypeError, match="sched"):
         fa.simulate(paper, 0.5, "online", 10, 10)
+
+
+def test_trace_curve_is_array_like(paper):
+    c = fa.expected_trace_curve(paper, 0.5, fa.OnlineSchedule(2), 10)
+    assert len(c) == 10 and np.asarray(c).shape == (10,) and c[0] == c.trace[0]
+
+
+def test_recording_too_many_runs_refused(paper):
+    with pytest.raises(ValueError, match="runs"):
+        fa.simulate(paper, 0.5, fa.OnlineSchedule(2), 10, 2**29, record_runs=True)

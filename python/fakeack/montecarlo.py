@@ -143,6 +143,16 @@ class TraceCurve:
     j_k: np.ndarray
     """J_k = (1/k) Σ_{i<=k} E[Tr P_i] (the paper's Sec. V quantity)."""
 
+    # Array-like: np.asarray(curve) and curve[k-1] give E[Tr P_k].
+    def __array__(self, dtype: Any = None, copy: bool | None = None) -> np.ndarray:
+        return np.asarray(self.trace, dtype=dtype)
+
+    def __len__(self) -> int:
+        return len(self.trace)
+
+    def __getitem__(self, index: Any) -> Any:
+        return self.trace[index]
+
 
 def expected_trace_curve(
     system: Any, lam: Any, sched: Any, horizon: Any = 200, attack: Any = None
