@@ -45,6 +45,15 @@ def flag_interval_moments(lam: Any, z0: Any, mu: Any = 1.0) -> tuple[float, floa
     :math:`E[T] = (N\mathbf 1)_0` and :math:`E[T^2] = ((2N - I)N\mathbf 1)_0`. The mean equals
     1 / :func:`fakeack.online_high_power_rate` (checked in the tests).
 
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+
     Returns
     -------
     (mean, variance) : tuple of float
@@ -70,12 +79,18 @@ def flag_interval_moments(lam: Any, z0: Any, mu: Any = 1.0) -> tuple[float, floa
 
 
 def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
-    """Long-run flag-ACKs delivered to the sensor per step under an attack pattern (exact).
+    r"""Long-run flag-ACKs delivered to the sensor per step under an attack pattern (exact).
 
     Parameters
     ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
     attack : None, (r, t) or AttackPattern
         ``None`` gives the online high-power rate.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
     """
     lam, z0, mu = _online(lam, z0, mu)
     mask = _attack_mask(attack) or [False]
@@ -106,6 +121,19 @@ def estimate_beta(delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0
     [0, 1]. It assumes the observation window spans many attack periods; for the paper's short
     patterns the model is close (1000-step windows: mean estimate 0.203 at r/t = 1/5, 0.669 at 2/3);
     :func:`detection_rates` reports the simulated mean and spread.
+
+    Parameters
+    ----------
+    delivered : int
+        Flag-ACKs the sensor received.
+    n_steps : int
+        Observation length in steps.
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
     """
     lam, z0, mu = _online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1)
@@ -199,6 +227,25 @@ def detection_rates(
     Simulates ``runs`` attack-free and ``runs`` attacked observation windows of ``n_steps`` steps
     with :func:`fakeack.simulate` (the flag process does not depend on the plant) and applies the
     test to each window's delivered flag count.
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability at low power.
+    z0 : int
+        Memory length of the event detector.
+    attack : (r, t) or AttackPattern
+        The attack to detect.
+    n_steps : int, optional
+        Observation window in steps (default 1000).
+    runs : int, optional
+        Windows simulated with and without the attack (default 2000).
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+    alpha : float, optional
+        Level of the test (default 0.01).
+    seed : int, optional
+        Seed of the attack-free windows (the attacked ones use seed + 1).
     """
     lam, z0, mu = _online(lam, z0, mu)
     mask = _attack_mask(attack)

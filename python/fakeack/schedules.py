@@ -163,6 +163,15 @@ def online_high_power_rate(lam: Any, z0: Any, mu: Any = 1.0) -> float:
 
     .. math:: \frac{\lambda a^{z_0}(\mu + (1-\mu)a)}{1 - \mu a^{z_0+1} - (1-\mu)a^{z_0+2}}
 
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+
     Examples
     --------
     >>> round(online_high_power_rate(0.5, 2), 12)    # 1/7

@@ -84,8 +84,15 @@ def j_attack_limit(s: Any, lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> float
 
     Parameters
     ----------
+    s : LinearSystem
+    lam : float
+        Arrival probability at low power.
+    z0 : int
+        Memory length.
     beta : float or Fraction
         Attacker budget :math:`\beta \in [0, 1]`.
+    mu : float, optional
+        Probability of the z0-bit memory at each step.
 
     Returns
     -------
@@ -192,6 +199,16 @@ def beta_bar(s: Any, lam: Any, ratio: Any, t_max: Any = 60) -> BetaBar:
       :math:`\bar\beta = G/(G+L)`, :math:`G = (J_{\mathrm{off}} - J_{\mathrm{on}})/f_{\mathrm{on}}`,
       :math:`L = (J_{\max} - J_{\mathrm{off}})/f_{\mathrm{blk}}`. It is the threshold against the
       worst attacker with budget β, and the one :func:`choose_schedule` uses.
+
+    Parameters
+    ----------
+    s : LinearSystem
+    lam : float
+        Arrival probability at low power.
+    ratio : Fraction
+        Energy ratio p/q; the online schedule is :func:`fakeack.design_online` ``(lam, ratio)``.
+    t_max : int, optional
+        Largest attack period for ``finite`` (default 60).
     """
     core = _core(s)
     lam_f, r, z0, mu, joff, jon = _design(s, lam, ratio)
@@ -262,6 +279,20 @@ def worst_mask(s: Any, lam: Any, z0: Any, t: Any, blocked: Any, mu: Any = 1.0) -
 
     Tests whether blocking consecutively, the paper's choice after the optimal-DoS result it cites,
     is the worst pattern for this system. ``t <= 24`` (all :math:`\\binom{t}{blocked}` masks).
+
+    Parameters
+    ----------
+    s : LinearSystem
+    lam : float
+        Arrival probability at low power.
+    z0 : int
+        Memory length.
+    t : int
+        Mask length (flag-ACKs per period), at most 24.
+    blocked : int
+        Blocked flag-ACKs per period, ``0 <= blocked < t``.
+    mu : float, optional
+        Probability of the z0-bit memory at each step.
     """
     core = _core(s)
     lam = as_probability("lam", lam)

@@ -1,0 +1,25 @@
+"""Every public function is documented, and its docstring names every parameter
+(python-control's docstrings_test, in small)."""
+
+import inspect
+
+import pytest
+
+import fakeack as fa
+
+PUBLIC = [getattr(fa, n) for n in fa.__all__ if inspect.isfunction(getattr(fa, n))]
+
+
+@pytest.mark.parametrize("fn", PUBLIC, ids=lambda f: f.__name__)
+def test_documented(fn):
+    doc = inspect.getdoc(fn)
+    assert doc and len(doc) > 40, f"{fn.__name__} has no real docstring"
+    for name in inspect.signature(fn).parameters:
+        assert name in doc, f"{fn.__name__}: parameter {name!r} is not documented"
+
+
+def test_classes_documented():
+    for n in fa.__all__:
+        obj = getattr(fa, n)
+        if inspect.isclass(obj):
+            assert inspect.getdoc(obj), n
