@@ -140,7 +140,7 @@ fn bench_stationary(c: &mut Criterion) {
             |b, ch| {
                 b.iter(|| {
                     let pi = stationary::structured(black_box(ch)).unwrap();
-                    let w = sys.weighted_traces(1.0 - ch.lam, (ch.z0 * (ch.r + 1)) as usize);
+                    let w = sys.weighted_traces(1.0 - ch.lam, ((ch.z0 + 1) * (ch.r + 1)) as usize);
                     let j = stationary::j_attack(ch, &w).unwrap();
                     black_box((pi, j))
                 })

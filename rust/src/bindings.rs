@@ -139,7 +139,7 @@ impl PySystem {
         py.detach(|| {
             if mu == 1.0 {
                 // The structured stationary law of the (τ, σ) chain, summed per segment.
-                let n = z0 as u128 * (r as u128 + 1);
+                let n = pattern::tau_needed(z0, r);
                 let w = self
                     .inner
                     .checked_weighted_traces(1.0 - lam, n, "(z0, r)")?;

@@ -191,6 +191,12 @@ impl Segments {
         let (a, b) = self.first_r_offsets(r);
         (t as f64 * self.w[0] + a[r]) / (t as f64 * self.m[0] + b[r])
     }
+
+    /// The numerator N(r, t) = t W_0 + a_r alone (with masses as `w`, the normaliser D).
+    pub fn j_first_r_num(&self, r: usize, t: usize) -> f64 {
+        let (a, _) = self.first_r_offsets(r);
+        t as f64 * self.w[0] + a[r]
+    }
 }
 
 /// Segment sums Σ_i C(k,i) μ^(k-i) (1-μ)^i Z_k(k z0 + i) of a per-τ weight `v`, where

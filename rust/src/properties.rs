@@ -51,7 +51,7 @@ proptest! {
                      lam in 0.05f64..0.95, z0 in 1u64..=5, t in 2u64..=30) {
         let Some(sys) = system(n, 1, &entries, scale) else { return Ok(()) };
         let a = 1.0 - lam;
-        let w = sys.weighted_traces(a, (z0 * (t + 1)) as usize + 2);
+        let w = sys.weighted_traces(a, ((z0 + 1) * (t + 1)) as usize + 2);
         let jon = j_online(&w, lam, z0, 1.0).unwrap();
         let jmax = j_max(&sys, lam).unwrap();
         let mut prev = jon;

@@ -8,13 +8,15 @@
 //! * [`gth`]: Grassmann-Taksar-Heyman state reduction on any row-stochastic CSR matrix, free of
 //!   subtractions and so accurate to a few ulps; general but slower.
 //!
-//! [`j_attack`] sums the structured law against the weighted traces per segment: O(r z0), so
-//! |S| = 10^7 and beyond costs microseconds.
+//! [`j_attack`] sums the structured law against the weighted traces per segment (the renewal
+//! form of [`crate::pattern`]): O(r z0), so |S| = 10^7 and beyond costs microseconds.
 
 use std::collections::BTreeMap;
 
 use crate::chain::{AttackChain, Csr};
 use crate::error::{Error, Result};
+use crate::pattern::{tau_needed, Segments};
+use crate::schedules::apow;
 
 /// Largest stationary vector [`structured`] will allocate (0.8 GB of f64).
 pub const MAX_VECTOR_STATES: u128 = 100_000_000;
@@ -47,50 +49,6 @@ impl AttackChain {
             (tau - 1) / self.z0
         }
     }
-
-    /// Segment sums of a per-τ weight `v` (v[τ] for τ = 0..=z0(kmax+1)): segment 0 is τ = 0..=z0,
-    /// segment k ≥ 1 is τ = z0 k + 1 ..= z0(k+1).
-    fn segment_sums(&self, v: &[f64], kmax: u64) -> Vec<f64> {
-        let z = self.z0 as usize;
-        let mut out = Vec::with_capacity(kmax as usize + 1);
-        out.push(v[..=z].iter().sum());
-        for k in 1..=kmax as usize {
-            out.push(v[z * k + 1..=z * (k + 1)].iter().sum());
-        }
-        out
-    }
-
-    /// Σ over states of c̃(σ-k) v[τ]: (t-r) V_0 + Σ_{σ=1..r} V_σ + (1-u) Σ_{k<r} (r-k) V_k.
-    fn level_sum(&self, seg: &[f64]) -> f64 {
-        let (r, t) = (self.r as usize, self.t as usize);
-        let one_minus_u = self.c_tilde(1.min(self.r));
-        let mut total = (t - r) as f64 * seg[0];
-        total += seg[1..=r].iter().sum::<f64>();
-        if r > 0 {
-            let weighted: f64 = seg[..r]
-                .iter()
-                .enumerate()
-                .map(|(k, v)| (r - k) as f64 * v)
-                .sum();
-            total += one_minus_u * weighted;
-        }
-        total
-    }
-
-    /// Normaliser D = Σ c̃(σ-k) a^τ over all states.
-    fn normaliser(&self) -> f64 {
-        let a = 1.0 - self.lam;
-        let taus = self.z0 * (self.r + 1);
-        let mut pow = 1.0;
-        let mass: Vec<f64> = (0..=taus)
-            .map(|_| {
-                let p = pow;
-                pow *= a;
-                p
-            })
-            .collect();
-        self.level_sum(&self.segment_sums(&mass, self.r))
-    }
 }
 
 /// Stationary law in the paper's state order, in O(|S|) without building the matrix.
@@ -104,7 +62,12 @@ pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
         });
     }
     let a = 1.0 - chain.lam;
-    let scale = 1.0 / chain.normaliser();
+    // Normaliser D = Σ c̃(σ-k) a^τ over all states: the renewal form's denominator.
+    let mass: Vec<f64> = (0..=tau_needed(chain.z0, chain.r))
+        .map(|tau| apow(chain.lam, tau as u64))
+        .collect();
+    let seg = Segments::new(&mass, chain.lam, chain.z0, 1.0, chain.r)?;
+    let scale = 1.0 / seg.j_first_r_num(chain.r as usize, chain.t as usize);
     let mut pi = Vec::with_capacity(n as usize);
     for sigma in 0..chain.t {
         let mut pow = scale;
@@ -118,14 +81,11 @@ pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
 }
 
 /// J(θ̃_on) = Σ_S π(τ, σ) Tr h^τ(P̄) from the weighted traces w_τ = a^τ Tr h^τ(P̄),
-/// τ = 0..=z0(r+1). O(r z0).
+/// τ = 0..=(r+1)(z0+1): the structured law summed per segment (the renewal form of
+/// [`crate::pattern`] with μ = 1). O(r z0).
 pub fn j_attack(chain: &AttackChain, w: &[f64]) -> Result<f64> {
-    let need = (chain.z0 * (chain.r + 1) + 1) as usize;
-    if w.len() < need {
-        return Err(Error::invalid("w", format!("needs {need} weighted traces")));
-    }
-    let num = chain.level_sum(&chain.segment_sums(w, chain.r));
-    Ok(num / chain.normaliser())
+    let seg = Segments::new(w, chain.lam, chain.z0, 1.0, chain.r)?;
+    Ok(seg.j_first_r(chain.r as usize, chain.t as usize))
 }
 
 /// ||π T - π||_1 for the attack chain, applying rules 1)-4) on the fly (no matrix).
