@@ -14,8 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from . import _fakeack
-
 
 class CliError(Exception):
     """A failure reported as ``fakeack: error: ...`` with its own exit code."""
@@ -115,14 +113,4 @@ def _frac(x: Fraction) -> str:
     return str(x.numerator) if x.denominator == 1 else f"{x.numerator}/{x.denominator}"
 
 
-# ------------------------------------------------------------------------------- computation
 
-
-def _mc_available() -> bool:
-    return hasattr(_fakeack, "simulate")
-
-
-_MC_MISSING = (
-    "Monte Carlo skipped: this build of the compiled core has no simulate "
-    "(fakeack._fakeack.simulate); rebuild the package to enable it"
-)

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ._cli_io import _MC_MISSING, _frac, _mc_available
+from ._cli_io import _frac
 from .attack import j_attack
 from .config import (
     AttackSpec,
@@ -246,8 +246,6 @@ def analyse(
     paper = paper or {}
     z0, mu = online
     mc_note = None
-    if mc is not None and not _mc_available():
-        mc, mc_note = None, _MC_MISSING
     H = mc.horizon if mc is not None else horizon
     off, on = OfflineSchedule(ratio), OnlineSchedule(z0, mu)
     j_off, j_on, jmx = j_offline(s, lam, ratio), j_online(s, lam, z0, mu), j_max(s, lam)
