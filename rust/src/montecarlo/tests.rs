@@ -276,6 +276,26 @@ fn state_mode_matches_covariance_mode() {
     }
 }
 
+/// Cases that reach the rarer kernel paths: a table too long for the in-register lookup
+/// (gathered), and a mask over 64 entries.
+fn edge_kernel_cases() -> Vec<McConfig> {
+    let mut long = vec![false; 70];
+    long[66] = true;
+    long[67] = true;
+    vec![
+        online(0.3, 4, 0.5, Some(vec![true, true, false, false])),
+        online(0.3, 2, 1.0, Some(long)),
+    ]
+}
+
+/// A rayon pool of `n` threads.
+fn pool(n: usize) -> rayon::ThreadPool {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build()
+        .unwrap()
+}
+
 /// (6) Results depend on the seed only: 1 or 2 threads, portable or vector kernel.
 #[test]
 fn independent_of_threads_and_kernel() {
@@ -298,18 +318,7 @@ fn independent_of_threads_and_kernel() {
         schedule: offline,
         ..online(0.45, 2, 1.0, None)
     });
-    // A table too long for the in-register lookup (gathered), and a mask over 64 entries.
-    cases.push(online(0.3, 4, 0.5, Some(vec![true, true, false, false])));
-    let mut long = vec![false; 70];
-    long[66] = true;
-    long[67] = true;
-    cases.push(online(0.3, 2, 1.0, Some(long)));
-    let pool = |n| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .unwrap()
-    };
+    cases.extend(edge_kernel_cases());
     let (one, two) = (pool(1), pool(2));
     for base in cases {
         let cfg = McConfig {

@@ -74,18 +74,7 @@ fn delivered_independent_of_threads_and_kernel() {
         cases.push(online(0.45, 2, mu, None));
         cases.push(online(0.45, 2, mu, attack()));
     }
-    // A gathered table lookup, and a mask over 64 entries.
-    cases.push(online(0.3, 4, 0.5, Some(vec![true, true, false, false])));
-    let mut long = vec![false; 70];
-    long[66] = true;
-    long[67] = true;
-    cases.push(online(0.3, 2, 1.0, Some(long)));
-    let pool = |n| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .unwrap()
-    };
+    cases.extend(edge_kernel_cases());
     let (one, two) = (pool(1), pool(2));
     for base in cases {
         let cfg = McConfig {
