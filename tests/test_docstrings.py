@@ -23,3 +23,13 @@ def test_classes_documented():
         obj = getattr(fa, n)
         if inspect.isclass(obj):
             assert inspect.getdoc(obj), n
+
+
+@pytest.mark.parametrize("module", ["system", "schedules", "montecarlo"])
+def test_docstring_examples_run(module):
+    import doctest
+    import importlib
+
+    mod = importlib.import_module(f"fakeack.{module}")
+    result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS)
+    assert result.failed == 0 and result.attempted > 0
