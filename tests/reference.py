@@ -62,7 +62,14 @@ def stationary_dense(T):
     M[-1, :] = 1.0
     b = np.zeros(n)
     b[-1] = 1.0
-    return np.linalg.solve(M, b)
+    x = np.linalg.solve(M, b)
+    # Two steps of iterative refinement with residuals in extended precision: plain LU leaves
+    # relative errors ~1e-8 on tiny probabilities, which large traces then weight.
+    Ml = M.astype(np.longdouble)
+    for _ in range(2):
+        r = (b - Ml @ x.astype(np.longdouble)).astype(np.float64)
+        x = x + np.linalg.solve(M, r)
+    return x
 
 
 def online_chain(lam, z0, mu):
