@@ -46,6 +46,28 @@ impl SplitMix64 {
     }
 }
 
+/// One xoshiro256++ step of four generators at once, state transposed (`s[k][i]` is word k of
+/// generator i), so the lanes map onto vector registers. Returns each generator's output.
+#[inline(always)]
+pub fn xoshiro256pp_x4(s: &mut [[u64; 4]; 4]) -> [u64; 4] {
+    let [s0, s1, s2, s3] = s;
+    let mut out = [0u64; 4];
+    for i in 0..4 {
+        out[i] = s0[i]
+            .wrapping_add(s3[i])
+            .rotate_left(23)
+            .wrapping_add(s0[i]);
+        let t = s1[i] << 17;
+        s2[i] ^= s0[i];
+        s3[i] ^= s1[i];
+        s1[i] ^= s2[i];
+        s0[i] ^= s3[i];
+        s2[i] ^= t;
+        s3[i] = s3[i].rotate_left(45);
+    }
+    out
+}
+
 /// xoshiro256++ 1.0 (Blackman and Vigna): period 2^256 - 1, passes BigCrush in all bits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Xoshiro256pp {

@@ -68,11 +68,13 @@ use crate::error::{check_lam, check_mu, Error, Result};
 use crate::riccati::LinearSystem;
 use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
 
+mod bitslice;
 mod kernel;
 mod state;
 #[cfg(test)]
 mod tests;
 
+use bitslice::{BsBlock, BsPlan};
 use kernel::{cov_tile, detect_isa, Isa, Params, Tile, TileOut};
 use state::{state_tile_impl, StateModel};
 
@@ -82,6 +84,8 @@ pub const LANES: usize = 16;
 const _: () = assert!(LANES == 16);
 /// Runs per block; block b is seeded from (seed, b) alone.
 pub const BLOCK_RUNS: u64 = 256;
+// The bit-sliced kernel simulates exactly one block per call.
+const _: () = assert!(BLOCK_RUNS as usize == bitslice::RUNS);
 /// Largest horizon: one f64 per step and per in-flight block, at most 1 GiB per buffer.
 pub const MAX_HORIZON: usize = 1 << 27;
 /// Most runs whose delivered flag-ACKs can be recorded ([`McConfig::record_runs`]): 2 GiB.
@@ -258,6 +262,9 @@ struct Plan {
     /// tr[τ] = Tr h^τ(P̄), τ = 0..=bound (covariance mode; empty in state mode).
     tr: Vec<f64>,
     state: Option<StateModel>,
+    /// The bit-sliced covariance kernel's plan, when the plan fits it (shallow τ bound, short
+    /// memory, few runs of ones in the mask); else the lane kernels run.
+    bitslice: Option<BsPlan>,
 }
 
 impl Plan {
@@ -302,6 +309,7 @@ impl Plan {
             bound: 0,
             tr: Vec::new(),
             state: None,
+            bitslice: None,
         };
         match &cfg.schedule {
             McSchedule::Offline { pattern } => {
@@ -378,7 +386,34 @@ impl Plan {
             }
             Mode::State => plan.state = Some(StateModel::new(sys)?),
         }
+        plan.bitslice = plan.bitslice_plan(cfg.attack.as_deref());
         Ok(plan)
+    }
+
+    /// The bit-sliced kernel's plan if this experiment fits it.
+    fn bitslice_plan(&self, attack: Option<&[bool]>) -> Option<BsPlan> {
+        let depth = self.bound as usize;
+        let memory = if self.mu_draw {
+            self.z0.saturating_add(1)
+        } else {
+            self.l_fixed
+        };
+        let mask_runs = attack.map(bitslice::mask_runs).unwrap_or_default();
+        let fits = self.state.is_none()
+            && depth <= bitslice::MAX_DEPTH
+            && (attack.is_none() || memory <= bitslice::MAX_DEPTH as u64)
+            && mask_runs.len() <= bitslice::MAX_MASK_RUNS;
+        fits.then(|| BsPlan {
+            lam_thr: self.lam_thr,
+            mu_thr: self.mu_thr,
+            // Memory lengths beyond the depth never trigger (τ <= depth); clamp them.
+            z0: self.z0.min(depth as u64 + 1) as usize,
+            l_fixed: self.l_fixed.min(depth as u64 + 1) as usize,
+            pattern: self.pattern.clone(),
+            mask_runs,
+            mask_len: self.mask_len,
+            tr: self.tr.clone(),
+        })
     }
 
     fn params(&self) -> Params<'_> {
@@ -482,7 +517,77 @@ struct BlockOut {
     delivered: Vec<u64>,
 }
 
-fn run_block(plan: &Plan, isa: Isa, block: u64, cancel: &AtomicBool) -> Result<BlockOut> {
+/// Which kernels may run: the instruction set, and whether the bit-sliced covariance kernel may
+/// take the plans that fit it (tests turn it off to exercise the lane kernels on every plan).
+#[derive(Debug, Clone, Copy)]
+struct Kernels {
+    isa: Isa,
+    bitslice: bool,
+}
+
+/// One block on the bit-sliced kernel.
+fn run_bitslice_block(
+    plan: &Plan,
+    bs: &BsPlan,
+    isa: Isa,
+    block: u64,
+    cancel: &AtomicBool,
+) -> Result<BlockOut> {
+    let first = block * BLOCK_RUNS;
+    let runs = BLOCK_RUNS.min(plan.runs - first);
+    let mut acc = vec![0.0; plan.horizon];
+    #[cfg(target_arch = "x86_64")]
+    let avx2 = isa == Isa::Avx2;
+    #[cfg(not(target_arch = "x86_64"))]
+    let avx2 = false;
+    let flags = (
+        plan.online,
+        plan.mu_draw,
+        plan.mask.is_some(),
+        plan.protocol == Protocol::A,
+    );
+    let res = bitslice::run_block(
+        bs,
+        flags,
+        avx2,
+        &mut BsBlock {
+            seed: plan.seed,
+            block,
+            active: runs as usize,
+            record: plan.record_runs,
+            acc: &mut acc,
+        },
+        cancel,
+    )?;
+    let mut moments = Moments::default();
+    let horizon = plan.horizon as f64;
+    for s in &res.sum[..runs as usize] {
+        moments.push(s / horizon);
+    }
+    let high = if plan.online {
+        // Δ at k = 1 and after every delivered flag except one at the last step.
+        u128::from(runs + res.sent - res.blocked - res.hi_last)
+    } else {
+        u128::from(runs) * u128::from(plan.offline_high)
+    };
+    let mut delivered = res.delivered;
+    delivered.truncate(runs as usize);
+    Ok(BlockOut {
+        acc,
+        moments,
+        sent: u128::from(res.sent),
+        blocked: u128::from(res.blocked),
+        high,
+        runs,
+        delivered,
+    })
+}
+
+fn run_block(plan: &Plan, kernels: Kernels, block: u64, cancel: &AtomicBool) -> Result<BlockOut> {
+    let isa = kernels.isa;
+    if let (Some(bs), true) = (&plan.bitslice, kernels.bitslice) {
+        return run_bitslice_block(plan, bs, isa, block, cancel);
+    }
     let first = block * BLOCK_RUNS;
     let runs = BLOCK_RUNS.min(plan.runs - first);
     let mut acc = vec![0.0; plan.horizon];
@@ -574,7 +679,11 @@ pub fn simulate(
     cancel: &AtomicBool,
     progress: &AtomicU64,
 ) -> Result<McResult> {
-    simulate_with(sys, cfg, cancel, progress, detect_isa())
+    let kernels = Kernels {
+        isa: detect_isa(),
+        bitslice: true,
+    };
+    simulate_with(sys, cfg, cancel, progress, kernels)
 }
 
 fn simulate_with(
@@ -582,7 +691,7 @@ fn simulate_with(
     cfg: &McConfig,
     cancel: &AtomicBool,
     progress: &AtomicU64,
-    isa: Isa,
+    kernels: Kernels,
 ) -> Result<McResult> {
     let plan = Plan::new(sys, cfg)?;
     if cancel.load(Ordering::Relaxed) {
@@ -613,7 +722,7 @@ fn simulate_with(
         let outs: Vec<Result<BlockOut>> = (start..end)
             .into_par_iter()
             .map(|b| {
-                let out = run_block(&plan, isa, b, cancel)?;
+                let out = run_block(&plan, kernels, b, cancel)?;
                 progress.fetch_add(out.runs, Ordering::Relaxed);
                 Ok(out)
             })

@@ -258,9 +258,21 @@ fn state_mode_matches_covariance_mode() {
         let (rc, rs) = (run(&sys, &cov).unwrap(), run(&sys, &state).unwrap());
         let se = rc.stderr.hypot(rs.stderr);
         assert_close(name, rs.j, rc.j, se, 4.0);
-        // Same seed, same protocol randomness: the power decisions coincide exactly.
-        assert_eq!(rs.high_power_rate, rc.high_power_rate, "{name}");
-        assert_eq!(rs.flags_sent, rc.flags_sent, "{name}");
+        // Same seed, same protocol randomness as the lane kernels: the power decisions coincide.
+        let lanes = Kernels {
+            isa: detect_isa(),
+            bitslice: false,
+        };
+        let rl = simulate_with(
+            &sys,
+            &cov,
+            &AtomicBool::new(false),
+            &AtomicU64::new(0),
+            lanes,
+        );
+        let rl = rl.unwrap();
+        assert_eq!(rs.high_power_rate, rl.high_power_rate, "{name}");
+        assert_eq!(rs.flags_sent, rl.flags_sent, "{name}");
     }
     // k = 1 is an arrival: E||e_1||² = Tr P̄ checks the stationary start and the gain.
     for sys in [two_state_sys(), three_state_sys()] {
@@ -327,13 +339,39 @@ fn independent_of_threads_and_kernel() {
             seed: 61,
             ..base
         };
-        let go = |isa| {
-            simulate_with(&sys, &cfg, &AtomicBool::new(false), &AtomicU64::new(0), isa).unwrap()
+        let go = |isa, bitslice| {
+            let kernels = Kernels { isa, bitslice };
+            simulate_with(
+                &sys,
+                &cfg,
+                &AtomicBool::new(false),
+                &AtomicU64::new(0),
+                kernels,
+            )
+            .unwrap()
         };
-        let reference = one.install(|| go(Isa::Reference));
-        assert_eq!(two.install(|| go(Isa::Portable)), reference, "{cfg:?}");
-        assert_eq!(one.install(|| go(detect_isa())), reference, "{cfg:?}");
-        assert_eq!(two.install(|| go(detect_isa())), reference, "{cfg:?}");
+        // The lane kernels.
+        let reference = one.install(|| go(Isa::Reference, false));
+        assert_eq!(
+            two.install(|| go(Isa::Portable, false)),
+            reference,
+            "{cfg:?}"
+        );
+        assert_eq!(
+            one.install(|| go(detect_isa(), false)),
+            reference,
+            "{cfg:?}"
+        );
+        assert_eq!(
+            two.install(|| go(detect_isa(), false)),
+            reference,
+            "{cfg:?}"
+        );
+        // The bit-sliced kernel (every plan here fits it).
+        assert!(Plan::new(&sys, &cfg).unwrap().bitslice.is_some(), "{cfg:?}");
+        let sliced = one.install(|| go(Isa::Portable, true));
+        assert_eq!(two.install(|| go(detect_isa(), true)), sliced, "{cfg:?}");
+        assert_eq!(one.install(|| go(detect_isa(), true)), sliced, "{cfg:?}");
     }
     let state = McConfig {
         mode: Mode::State,

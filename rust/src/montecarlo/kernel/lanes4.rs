@@ -153,20 +153,7 @@ impl Stream {
     #[inline(always)]
     pub(super) fn draw(&mut self, thr: U, lo: u64, side: &mut [Xoshiro256pp]) -> U {
         if self.avail == 0 {
-            let [s0, s1, s2, s3] = &mut self.s;
-            for i in 0..4 {
-                self.bits[i] = s0[i]
-                    .wrapping_add(s3[i])
-                    .rotate_left(23)
-                    .wrapping_add(s0[i]);
-                let t = s1[i] << 17;
-                s2[i] ^= s0[i];
-                s3[i] ^= s1[i];
-                s1[i] ^= s2[i];
-                s0[i] ^= s3[i];
-                s2[i] ^= t;
-                s3[i] = s3[i].rotate_left(45);
-            }
+            self.bits = crate::rng::xoshiro256pp_x4(&mut self.s);
             self.avail = SLICES_PER_WORD;
         }
         self.avail -= 1;

@@ -78,9 +78,18 @@ fn cpu_seconds() -> f64 {
     }
 }
 
+fn env_or(name: &str, default: usize) -> usize {
+    std::env::var(name)
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(default)
+}
+
 /// Throughput: `cargo test --release montecarlo::tests::perf::speed -- --ignored --nocapture`.
 /// Prints wall-clock steps/s and steps per CPU-second (the latter times the core count is
-/// what the machine does when nothing else runs). `MC_SPEED_FILTER` selects cases by name.
+/// what the machine does when nothing else runs). `MC_SPEED_FILTER` selects cases by name
+/// ("lanes" for the lane kernels; a leading ^ anchors it); `MC_SPEED_THREADS`, `MC_SPEED_HORIZON` and `MC_SPEED_REPS`
+/// override 2 threads, 10^4 steps and 5 repetitions (small values suit `valgrind --tool=callgrind`).
 #[test]
 #[ignore]
 fn speed() {
@@ -159,20 +168,31 @@ fn speed() {
         .num_threads(threads)
         .build()
         .unwrap();
-    for isa in [detect_isa(), Isa::Portable] {
+    let families = [
+        ("", detect_isa(), true),
+        ("lanes ", detect_isa(), false),
+        ("lanes ", Isa::Portable, false),
+    ];
+    for (family, isa, bitslice) in families {
+        let kernels = Kernels { isa, bitslice };
         for (name, cfg) in &cases {
-            if !name.contains(filter.as_str()) {
+            let label = format!("{family}{isa:?} {name}");
+            let keep = match filter.strip_prefix('^') {
+                Some(head) => label.starts_with(head),
+                None => label.contains(filter.as_str()),
+            };
+            if !keep {
                 continue;
             }
             let state = cfg.mode == Mode::State;
             let cfg = McConfig {
-                horizon: 10_000,
+                horizon: env_or("MC_SPEED_HORIZON", 10_000),
                 runs: if state { 256 } else { 8192 } * threads as u64,
                 ..cfg.clone()
             };
             // Best of five repetitions: the least disturbed by other processes.
             let (mut best, mut best_cpu, mut j) = (0.0f64, 0.0f64, 0.0);
-            for _ in 0..5 {
+            for _ in 0..env_or("MC_SPEED_REPS", 5) {
                 let (t, c) = (std::time::Instant::now(), cpu_seconds());
                 let r = pool
                     .install(|| {
@@ -185,7 +205,7 @@ fn speed() {
                             &cfg,
                             &AtomicBool::new(false),
                             &AtomicU64::new(0),
-                            isa,
+                            kernels,
                         )
                     })
                     .unwrap();
@@ -196,7 +216,7 @@ fn speed() {
                 j = r.j;
             }
             println!(
-                "{isa:?} {name}: {best:.3e} steps/s wall, {best_cpu:.3e} per CPU-s ({threads} threads; j = {j:.6})"
+                "{family}{isa:?} {name}: {best:.3e} steps/s wall, {best_cpu:.3e} per CPU-s ({threads} threads; j = {j:.6})"
             );
         }
     }

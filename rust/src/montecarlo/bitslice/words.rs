@@ -1,0 +1,219 @@
+//! Word-parallel building blocks of the bit-sliced kernel: lane words of 256 runs, their random
+//! source, comparisons of binary counters with constants, and per-lane counters.
+
+use crate::rng::{xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
+
+/// Words per block; 64 runs per word.
+pub(crate) const WORDS: usize = 4;
+/// Runs per block.
+pub(crate) const RUNS: usize = 64 * WORDS;
+/// Steps per carry-save batch of [`LaneCounter::add16`].
+pub(crate) const BATCH: usize = 16;
+
+/// One bit per run.
+pub(crate) type W = [u64; WORDS];
+pub(crate) const ZERO: W = [0; WORDS];
+pub(crate) const ONES: W = [u64::MAX; WORDS];
+
+#[inline(always)]
+pub(crate) fn and(a: W, b: W) -> W {
+    std::array::from_fn(|i| a[i] & b[i])
+}
+#[inline(always)]
+pub(crate) fn or(a: W, b: W) -> W {
+    std::array::from_fn(|i| a[i] | b[i])
+}
+#[inline(always)]
+pub(crate) fn xor(a: W, b: W) -> W {
+    std::array::from_fn(|i| a[i] ^ b[i])
+}
+/// a & !b
+#[inline(always)]
+pub(crate) fn andnot(a: W, b: W) -> W {
+    std::array::from_fn(|i| a[i] & !b[i])
+}
+#[inline(always)]
+pub(crate) fn not(a: W) -> W {
+    std::array::from_fn(|i| !a[i])
+}
+#[inline(always)]
+pub(crate) fn any(a: W) -> bool {
+    (a[0] | a[1] | a[2] | a[3]) != 0
+}
+#[inline(always)]
+pub(crate) fn popcount(a: W) -> u32 {
+    a.iter().map(|w| w.count_ones()).sum()
+}
+/// All ones if `b`, else all zeros.
+#[inline(always)]
+pub(crate) fn splat(b: bool) -> W {
+    [0u64.wrapping_sub(u64::from(b)); WORDS]
+}
+
+/// Four xoshiro256++ streams, one per word: bit l of a word is run (64 w + l)'s random bit.
+pub(crate) struct Rng4 {
+    pub(crate) s: [W; 4],
+}
+
+impl Rng4 {
+    /// The streams of block `block`: SplitMix64 sub-stream (seed, block), one xoshiro256++ per
+    /// word, so a block's randomness depends on (seed, block) alone.
+    pub(crate) fn for_block(seed: u64, block: u64) -> Self {
+        let mut stream = SplitMix64::stream(seed, block);
+        let seeds: [[u64; 4]; WORDS] =
+            std::array::from_fn(|_| Xoshiro256pp::from_splitmix(&mut stream).state());
+        const { assert!(WORDS == 4) };
+        Rng4 {
+            s: std::array::from_fn(|k| std::array::from_fn(|w| seeds[w][k])),
+        }
+    }
+
+    #[inline(always)]
+    pub(crate) fn next(&mut self) -> W {
+        xoshiro256pp_x4(&mut self.s)
+    }
+
+    /// One Bernoulli(thr / 2^64) draw per lane: lane l hits iff its uniform U (bit i of U is bit
+    /// l of the i-th word drawn, most significant first) is below thr. Stops once every lane is
+    /// decided, or when thr has no one bit left (the undecided lanes then have U >= thr).
+    #[inline(always)]
+    pub(crate) fn bernoulli(&mut self, thr: u64) -> W {
+        let mut hit = ZERO;
+        if thr == 0 {
+            return hit;
+        }
+        let mut undecided = ONES;
+        let mut bit = 63u32;
+        loop {
+            let r = self.next();
+            if (thr >> bit) & 1 == 1 {
+                hit = or(hit, andnot(undecided, r));
+                undecided = and(undecided, r);
+            } else {
+                undecided = andnot(undecided, r);
+            }
+            if bit == 0 || thr & ((1u64 << bit) - 1) == 0 || !any(undecided) {
+                return hit;
+            }
+            bit -= 1;
+        }
+    }
+}
+
+/// Lanes whose binary counter (planes `s`, least significant first) is below `c`.
+#[inline(always)]
+pub(crate) fn less_than(s: &[W], c: u64) -> W {
+    if s.len() < 64 && c >> s.len() != 0 {
+        return ONES;
+    }
+    let (mut lt, mut eq) = (ZERO, ONES);
+    for (i, plane) in s.iter().enumerate().rev() {
+        if (c >> i) & 1 == 1 {
+            lt = or(lt, andnot(eq, *plane));
+            eq = and(eq, *plane);
+        } else {
+            eq = andnot(eq, *plane);
+        }
+    }
+    lt
+}
+
+/// Lanes whose binary counter equals `c`.
+#[inline(always)]
+pub(crate) fn equals(s: &[W], c: u64) -> W {
+    if s.len() < 64 && c >> s.len() != 0 {
+        return ZERO;
+    }
+    let mut eq = ONES;
+    for (i, plane) in s.iter().enumerate() {
+        eq = if (c >> i) & 1 == 1 {
+            and(eq, *plane)
+        } else {
+            andnot(eq, *plane)
+        };
+    }
+    eq
+}
+
+/// Adds one to the binary counters of the lanes in `inc`.
+#[inline(always)]
+pub(crate) fn increment(s: &mut [W], inc: W) {
+    let mut carry = inc;
+    for plane in s.iter_mut() {
+        let next = and(*plane, carry);
+        *plane = xor(*plane, carry);
+        carry = next;
+    }
+}
+
+/// Carry-save adder: (carry, sum) of a + b + c per bit.
+#[inline(always)]
+fn csa(a: W, b: W, c: W) -> (W, W) {
+    let u = xor(a, b);
+    (or(and(a, b), and(u, c)), xor(u, c))
+}
+
+/// Per-lane counts of set bits over a stream of words: Harley-Seal carry-save adders over
+/// batches of 16 words, the sixteens rippled into a vertical binary counter.
+#[derive(Clone, Copy)]
+pub(crate) struct LaneCounter {
+    ones: W,
+    twos: W,
+    fours: W,
+    eights: W,
+    /// Planes of the count of sixteens (2^32 · 16 exceeds any horizon).
+    sixteens: [W; 32],
+}
+
+impl LaneCounter {
+    pub(crate) const NEW: LaneCounter = LaneCounter {
+        ones: ZERO,
+        twos: ZERO,
+        fours: ZERO,
+        eights: ZERO,
+        sixteens: [ZERO; 32],
+    };
+
+    #[inline(always)]
+    pub(crate) fn add16(&mut self, d: &[W; BATCH]) {
+        let (twos_a, ones) = csa(self.ones, d[0], d[1]);
+        let (twos_b, ones) = csa(ones, d[2], d[3]);
+        let (fours_a, twos) = csa(self.twos, twos_a, twos_b);
+        let (twos_a, ones) = csa(ones, d[4], d[5]);
+        let (twos_b, ones) = csa(ones, d[6], d[7]);
+        let (fours_b, twos) = csa(twos, twos_a, twos_b);
+        let (eights_a, fours) = csa(self.fours, fours_a, fours_b);
+        let (twos_a, ones) = csa(ones, d[8], d[9]);
+        let (twos_b, ones) = csa(ones, d[10], d[11]);
+        let (fours_a, twos) = csa(twos, twos_a, twos_b);
+        let (twos_a, ones) = csa(ones, d[12], d[13]);
+        let (twos_b, ones) = csa(ones, d[14], d[15]);
+        let (fours_b, twos) = csa(twos, twos_a, twos_b);
+        let (eights_b, fours) = csa(fours, fours_a, fours_b);
+        let (mut carry, eights) = csa(self.eights, eights_a, eights_b);
+        (self.ones, self.twos, self.fours, self.eights) = (ones, twos, fours, eights);
+        for plane in self.sixteens.iter_mut() {
+            if !any(carry) {
+                break;
+            }
+            let next = and(*plane, carry);
+            *plane = xor(*plane, carry);
+            carry = next;
+        }
+    }
+
+    /// Every lane's count.
+    pub(crate) fn counts(&self) -> [u64; RUNS] {
+        let mut out = [0u64; RUNS];
+        let planes = [self.ones, self.twos, self.fours, self.eights];
+        for (weight, plane) in planes.iter().chain(self.sixteens.iter()).enumerate() {
+            if !any(*plane) {
+                continue;
+            }
+            for (l, n) in out.iter_mut().enumerate() {
+                *n += ((plane[l / 64] >> (l % 64)) & 1) << weight;
+            }
+        }
+        out
+    }
+}
