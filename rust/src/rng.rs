@@ -68,6 +68,32 @@ pub fn xoshiro256pp_x4(s: &mut [[u64; 4]; 4]) -> [u64; 4] {
     out
 }
 
+/// [`xoshiro256pp_x4`] on AVX2 registers: `s` holds the four state words, each over the four
+/// generators. Returns the four outputs.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+pub unsafe fn xoshiro256pp_x4_avx2(
+    s: &mut [std::arch::x86_64::__m256i; 4],
+) -> std::arch::x86_64::__m256i {
+    use std::arch::x86_64::*;
+    let [s0, s1, s2, s3] = *s;
+    let sum = _mm256_add_epi64(s0, s3);
+    let rot = _mm256_or_si256(_mm256_slli_epi64::<23>(sum), _mm256_srli_epi64::<41>(sum));
+    let out = _mm256_add_epi64(rot, s0);
+    let t = _mm256_slli_epi64::<17>(s1);
+    let s2 = _mm256_xor_si256(s2, s0);
+    let s3 = _mm256_xor_si256(s3, s1);
+    let s1 = _mm256_xor_si256(s1, s2);
+    let s0 = _mm256_xor_si256(s0, s3);
+    let s3 = _mm256_or_si256(_mm256_slli_epi64::<45>(s3), _mm256_srli_epi64::<19>(s3));
+    *s = [s0, s1, _mm256_xor_si256(s2, t), s3];
+    out
+}
+
 /// xoshiro256++ 1.0 (Blackman and Vigna): period 2^256 - 1, passes BigCrush in all bits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Xoshiro256pp {

@@ -135,7 +135,8 @@ fn pick<const D: usize>(levels: &[W; D], sel: &[bool; D]) -> W {
     out
 }
 
-/// The kernel on thermometers of D levels (levels[j] holds "≥ j + 1") and B counter planes.
+/// The kernel on thermometers of D levels (levels[j] holds "≥ j + 1") and B counter planes;
+/// `AVX` steps the random streams in AVX2 registers.
 #[inline(always)]
 fn body<
     const ONLINE: bool,
@@ -144,6 +145,7 @@ fn body<
     const PROTO_A: bool,
     const D: usize,
     const B: usize,
+    const AVX: bool,
 >(
     p: &BsPlan,
     b: &mut BsBlock,
@@ -182,7 +184,6 @@ fn body<
             return Err(Error::Interrupted);
         }
         for (s, acc) in steps.iter_mut().enumerate() {
-            let lucky = rng.bernoulli(p.lam_thr);
             let high = if ONLINE {
                 hi
             } else {
@@ -194,7 +195,8 @@ fn body<
                 };
                 splat(g == 1)
             };
-            let arrive = or(high, lucky);
+            // Only low-power packets need the channel's draw.
+            let arrive = or(high, rng.bernoulli::<AVX>(p.lam_thr, not(high)));
             // τ' = 0 on arrival, else τ + 1 (never beyond the plan's bound <= D).
             for j in (1..D).rev() {
                 therm[j] = andnot(therm[j - 1], arrive);
@@ -216,16 +218,14 @@ fn body<
             if !ONLINE {
                 continue;
             }
-            let short = if MU_DRAW {
-                rng.bernoulli(p.mu_thr)
-            } else {
-                ZERO
-            };
-            // The detector flags where the zero count reaches the memory: z0 bits (`short`)
-            // or z0 + 1 with a μ draw, else the fixed length.
-            let reached = |t: &[W; D]| -> W {
+            // The detector flags where the zero count reaches the memory: z0 bits (`short`,
+            // drawn only where the count is exactly z0, the one place it matters) or z0 + 1
+            // with a μ draw, else the fixed length.
+            let mut reached = |t: &[W; D]| -> W {
                 if MU_DRAW {
-                    or(pick(t, &sel_long), and(pick(t, &sel_short), short))
+                    let (long, at_z0) = (pick(t, &sel_long), pick(t, &sel_short));
+                    let short = rng.bernoulli::<AVX>(p.mu_thr, andnot(at_z0, long));
+                    or(long, and(at_z0, short))
                 } else {
                     pick(t, &sel_fixed)
                 }
@@ -331,7 +331,7 @@ fn block_portable<const O: bool, const M: bool, const A: bool, const P: bool>(
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, MAX_DEPTH, 64>(p, b, cancel)
+    body::<O, M, A, P, MAX_DEPTH, 64, false>(p, b, cancel)
 }
 
 /// # Safety
@@ -350,7 +350,7 @@ unsafe fn block_avx2<
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, D, B>(p, b, cancel)
+    body::<O, M, A, P, D, B, true>(p, b, cancel)
 }
 
 /// The AVX2 kernel for one flag combination, specialised on the smallest thermometer size

@@ -8,6 +8,14 @@ fn lane(w: &W, l: usize) -> bool {
     (w[l / 64] >> (l % 64)) & 1 == 1
 }
 
+fn from_lanes(f: impl Fn(usize) -> bool) -> W {
+    let mut w = ZERO;
+    for l in 0..RUNS {
+        w[l / 64] |= u64::from(f(l)) << (l % 64);
+    }
+    w
+}
+
 /// A Rng4 that records every word it hands out.
 struct Recorder {
     rng: Rng4,
@@ -15,14 +23,14 @@ struct Recorder {
 }
 
 impl Recorder {
-    fn bernoulli(&mut self, thr: u64) -> W {
+    fn bernoulli(&mut self, thr: u64, need: W) -> W {
         // Replay: draw with a clone, count how many words it used, then record them.
         let mut probe = Rng4 { s: self.rng.s };
         let before = probe.s;
-        let hit = probe.bernoulli(thr);
+        let hit = probe.bernoulli::<false>(thr, need);
         let mut replay = Rng4 { s: before };
         while replay.s != probe.s {
-            self.words.push(replay.next());
+            self.words.push(replay.next::<false>());
         }
         self.rng = probe;
         hit
@@ -45,9 +53,12 @@ fn bernoulli_is_the_prefix_comparison() {
             rng: Rng4::for_block(9, thr % 1000),
             words: Vec::new(),
         };
-        for _ in 0..50 {
+        let sparse = from_lanes(|l| l % 37 == 5);
+        for draw in 0..60 {
+            // All lanes, a few lanes (fewer words), or none (no word at all).
+            let need = [ONES, sparse, ZERO][draw % 3];
             rec.words.clear();
-            let hit = rec.bernoulli(thr);
+            let hit = rec.bernoulli(thr, need);
             let used = rec.words.len();
             assert!(used <= 64);
             for l in 0..RUNS {
@@ -60,10 +71,13 @@ fn bernoulli_is_the_prefix_comparison() {
                 } else {
                     u128::from(thr >> (64 - used))
                 };
-                let expect = used > 0 && u < t_prefix;
+                let expect = lane(&need, l) && used > 0 && u < t_prefix;
                 assert_eq!(lane(&hit, l), expect, "thr {thr:#x} lane {l} used {used}");
-                if thr == 1 << 63 {
+                if thr == 1 << 63 && need == ONES {
                     assert_eq!(used, 1, "p = 1/2 takes one word");
+                }
+                if need == ZERO {
+                    assert_eq!(used, 0);
                 }
             }
         }
@@ -77,7 +91,7 @@ fn bernoulli_frequency() {
         let mut rng = Rng4::for_block(4, 1);
         let draws = 4000u32;
         let hits: u64 = (0..draws)
-            .map(|_| u64::from(popcount(rng.bernoulli(thr))))
+            .map(|_| u64::from(popcount(rng.bernoulli::<false>(thr, ONES))))
             .sum();
         let n = f64::from(draws) * RUNS as f64;
         let se = (p * (1.0 - p) / n).sqrt();
@@ -96,7 +110,8 @@ fn counters_and_comparisons() {
     let mut c = LaneCounter::NEW;
     let mut naive = vec![0u64; RUNS];
     for _ in 0..37 {
-        let batch: [W; BATCH] = std::array::from_fn(|_| and(rng.next(), rng.next()));
+        let batch: [W; BATCH] =
+            std::array::from_fn(|_| and(rng.next::<false>(), rng.next::<false>()));
         for w in &batch {
             for (l, n) in naive.iter_mut().enumerate() {
                 *n += u64::from(lane(w, l));
@@ -107,7 +122,7 @@ fn counters_and_comparisons() {
     assert_eq!(c.counts().to_vec(), naive);
     // Binary planes against plain integers.
     for bits in [1usize, 3, 5, 64] {
-        let planes: Vec<W> = (0..bits).map(|_| rng.next()).collect();
+        let planes: Vec<W> = (0..bits).map(|_| rng.next::<false>()).collect();
         let value =
             |l: usize| -> u64 { (0..bits).map(|i| u64::from(lane(&planes[i], l)) << i).sum() };
         let mut consts: Vec<u64> = vec![0, 1, 2, 5, 31, 32, 33, u64::MAX];
@@ -178,63 +193,74 @@ fn plain(
         hi_last: 0,
     };
     for k in 0..horizon {
-        let lucky = rng.bernoulli(p.lam_thr);
-        let short = if online && mu_draw {
-            rng.bernoulli(p.mu_thr)
-        } else {
-            ZERO
-        };
+        let high: Vec<bool> = (0..RUNS)
+            .map(|l| {
+                if online {
+                    hi[l]
+                } else {
+                    p.pattern[k % p.pattern.len()] == 1
+                }
+            })
+            .collect();
+        // Draws only for the low-power lanes.
+        let lucky = rng.bernoulli::<false>(p.lam_thr, from_lanes(|l| !high[l]));
         let mut step_hist = vec![0u64; depth + 1];
+        let mut arrive = vec![false; RUNS];
         for l in 0..RUNS {
-            let high = if online {
-                hi[l]
+            arrive[l] = high[l] || lane(&lucky, l);
+            tau[l] = if arrive[l] {
+                0
             } else {
-                p.pattern[k % p.pattern.len()] == 1
+                (tau[l] + 1).min(depth)
             };
-            let arrive = high || lane(&lucky, l);
-            tau[l] = if arrive { 0 } else { (tau[l] + 1).min(depth) };
             hist[l][tau[l]] += 1;
             if l < active {
                 step_hist[tau[l]] += 1;
             }
-            if !online {
-                continue;
-            }
-            let memory = if mu_draw {
-                if lane(&short, l) {
-                    p.z0
-                } else {
-                    p.z0 + 1
-                }
+        }
+        if online {
+            // The zero count the detector compares with its memory.
+            let count: Vec<usize> = (0..RUNS)
+                .map(|l| match mask {
+                    None => tau[l],
+                    Some(_) if arrive[l] => 0,
+                    Some(_) => zeros[l] + 1,
+                })
+                .collect();
+            // μ is drawn only where the count is exactly z0.
+            let short = if mu_draw {
+                rng.bernoulli::<false>(p.mu_thr, from_lanes(|l| count[l] == p.z0))
             } else {
-                p.l_fixed
+                ZERO
             };
-            let counted = u64::from(l < active);
-            match mask {
-                None => {
-                    hi[l] = tau[l] >= memory;
-                    out.sent += u64::from(hi[l]) * counted;
-                }
-                Some(mask) => {
-                    zeros[l] = if arrive { 0 } else { zeros[l] + 1 };
-                    let flag = zeros[l] >= memory;
-                    if flag {
-                        zeros[l] = 0;
+            for l in 0..RUNS {
+                let memory = match (mu_draw, lane(&short, l)) {
+                    (true, true) => p.z0,
+                    (true, false) => p.z0 + 1,
+                    (false, _) => p.l_fixed,
+                };
+                let counted = u64::from(l < active);
+                let flag = count[l] >= memory;
+                let attacked = match mask {
+                    None => false,
+                    Some(mask) => {
+                        zeros[l] = if flag { 0 } else { count[l] };
+                        let attacked = flag && mask[counter[l]];
+                        if flag {
+                            counter[l] = (counter[l] + 1) % mask.len();
+                        }
+                        attacked
                     }
-                    let attacked = flag && mask[counter[l]];
-                    if flag {
-                        counter[l] = (counter[l] + 1) % mask.len();
-                    }
-                    hi[l] = if proto_a {
-                        flag ^ attacked
-                    } else {
-                        flag && !attacked
-                    };
-                    out.sent += u64::from(flag) * counted;
-                    out.blocked += u64::from(attacked) * counted;
-                }
+                };
+                hi[l] = if proto_a {
+                    flag ^ attacked
+                } else {
+                    flag && !attacked
+                };
+                out.sent += u64::from(flag) * counted;
+                out.blocked += u64::from(attacked) * counted;
+                out.delivered[l] += u64::from(hi[l]);
             }
-            out.delivered[l] += u64::from(hi[l]);
         }
         out.acc.push(histogram_sum(&p.tr, &step_hist));
     }

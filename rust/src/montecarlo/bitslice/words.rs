@@ -68,24 +68,33 @@ impl Rng4 {
         }
     }
 
+    /// The next word of each stream; `AVX` steps them in AVX2 registers (LLVM keeps the
+    /// portable version scalar: AVX2 has no 64-bit rotate).
     #[inline(always)]
-    pub(crate) fn next(&mut self) -> W {
+    pub(crate) fn next<const AVX: bool>(&mut self) -> W {
+        #[cfg(target_arch = "x86_64")]
+        if AVX {
+            // SAFETY: kernels with AVX = true are compiled for AVX2 and run only after the
+            // run-time check (see `block_avx2`).
+            return unsafe { next_avx2(&mut self.s) };
+        }
         xoshiro256pp_x4(&mut self.s)
     }
 
-    /// One Bernoulli(thr / 2^64) draw per lane: lane l hits iff its uniform U (bit i of U is bit
-    /// l of the i-th word drawn, most significant first) is below thr. Stops once every lane is
-    /// decided, or when thr has no one bit left (the undecided lanes then have U >= thr).
+    /// One Bernoulli(thr / 2^64) draw for each lane of `need` (0 elsewhere): lane l hits iff
+    /// its uniform U (bit i of U is bit l of the i-th word drawn, most significant first) is
+    /// below thr. Stops once every needed lane is decided, or when thr has no one bit left (the
+    /// undecided lanes then have U >= thr); draws no word when no lane needs one.
     #[inline(always)]
-    pub(crate) fn bernoulli(&mut self, thr: u64) -> W {
+    pub(crate) fn bernoulli<const AVX: bool>(&mut self, thr: u64, need: W) -> W {
         let mut hit = ZERO;
-        if thr == 0 {
+        if thr == 0 || !any(need) {
             return hit;
         }
-        let mut undecided = ONES;
+        let mut undecided = need;
         let mut bit = 63u32;
         loop {
-            let r = self.next();
+            let r = self.next::<AVX>();
             if (thr >> bit) & 1 == 1 {
                 hit = or(hit, andnot(undecided, r));
                 undecided = and(undecided, r);
@@ -98,6 +107,26 @@ impl Rng4 {
             bit -= 1;
         }
     }
+}
+
+/// [`Rng4::next`] on AVX2 registers.
+///
+/// # Safety
+/// The CPU must support AVX2.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+#[target_feature(enable = "avx2")]
+unsafe fn next_avx2(s: &mut [W; 4]) -> W {
+    use std::arch::x86_64::{__m256i, _mm256_loadu_si256, _mm256_storeu_si256};
+    let mut v: [__m256i; 4] =
+        std::array::from_fn(|k| _mm256_loadu_si256(s[k].as_ptr().cast::<__m256i>()));
+    let out = crate::rng::xoshiro256pp_x4_avx2(&mut v);
+    for (k, w) in s.iter_mut().enumerate() {
+        _mm256_storeu_si256(w.as_mut_ptr().cast::<__m256i>(), v[k]);
+    }
+    let mut r = ZERO;
+    _mm256_storeu_si256(r.as_mut_ptr().cast::<__m256i>(), out);
+    r
 }
 
 /// Lanes whose binary counter (planes `s`, least significant first) is below `c`.

@@ -202,19 +202,9 @@ impl Stream {
     #[target_feature(enable = "avx2")]
     pub(super) unsafe fn draw(&mut self, thr: U, lo: u64, side: &mut [Xoshiro256pp]) -> U {
         if self.avail == 0 {
-            let (s0, s1, s2, s3) = (self.s0, self.s1, self.s2, self.s3);
-            let sum = _mm256_add_epi64(s0, s3);
-            let rot = _mm256_or_si256(_mm256_slli_epi64::<23>(sum), _mm256_srli_epi64::<41>(sum));
-            self.bits = _mm256_add_epi64(rot, s0);
-            let t = _mm256_slli_epi64::<17>(s1);
-            let s2 = _mm256_xor_si256(s2, s0);
-            let s3 = _mm256_xor_si256(s3, s1);
-            let s1 = _mm256_xor_si256(s1, s2);
-            let s0 = _mm256_xor_si256(s0, s3);
-            self.s0 = s0;
-            self.s1 = s1;
-            self.s2 = _mm256_xor_si256(s2, t);
-            self.s3 = _mm256_or_si256(_mm256_slli_epi64::<45>(s3), _mm256_srli_epi64::<19>(s3));
+            let mut s = [self.s0, self.s1, self.s2, self.s3];
+            self.bits = crate::rng::xoshiro256pp_x4_avx2(&mut s);
+            [self.s0, self.s1, self.s2, self.s3] = s;
             self.avail = SLICES_PER_WORD;
         }
         self.avail -= 1;
