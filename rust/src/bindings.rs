@@ -9,7 +9,7 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::chain::{AttackChain, Csr};
 use crate::error::Error;
@@ -525,15 +525,23 @@ fn simulate<'py>(
     let cancel = AtomicBool::new(false);
     let done = AtomicU64::new(0);
     let res = std::thread::scope(|scope| -> PyResult<montecarlo::McResult> {
-        let worker = scope.spawn(|| montecarlo::simulate(&sys, &cfg, &cancel, &done));
+        // The worker says when it is done, so a short run returns at once; otherwise the
+        // GIL is retaken every 50 ms to check signals and report progress.
+        let (tx, mut rx) = std::sync::mpsc::channel::<()>();
+        let worker = scope.spawn(|| {
+            let r = montecarlo::simulate(&sys, &cfg, &cancel, &done);
+            drop(tx);
+            r
+        });
         loop {
-            let finished = py.detach(|| {
-                let start = Instant::now();
-                while !worker.is_finished() && start.elapsed() < Duration::from_millis(50) {
-                    std::thread::sleep(Duration::from_millis(2));
-                }
-                worker.is_finished()
+            // Disconnected: the worker ended (its sender is gone), normally or by a panic.
+            // (The receiver is not Sync: it moves into the GIL-free closure and back.)
+            let (finished, back) = py.detach(move || {
+                let wait = rx.recv_timeout(Duration::from_millis(50));
+                let timeout = matches!(wait, Err(std::sync::mpsc::RecvTimeoutError::Timeout));
+                (!timeout, rx)
             });
+            rx = back;
             let polled = py
                 .check_signals()
                 .and_then(|_| progress.call1((done.load(Ordering::Relaxed),)).map(|_| ()));

@@ -307,17 +307,16 @@ fn body<
         let x = tr[D] * a as f64;
         *s += if a != 0 { x } else { 0.0 };
     }
-    let (sent, lost) = (sent_c.counts(), lost_c.counts());
-    let total = |c: &[u64; RUNS]| c[..b.active].iter().sum::<u64>();
     Ok(BsOut {
         sum,
         delivered: if b.record {
+            let (sent, lost) = (sent_c.counts(), lost_c.counts());
             (0..RUNS).map(|l| sent[l] - lost[l]).collect()
         } else {
             Vec::new()
         },
-        sent: total(&sent),
-        blocked: total(&lost),
+        sent: sent_c.total(active),
+        blocked: lost_c.total(active),
         hi_last: if ONLINE {
             u64::from(popcount(and(hi, active)))
         } else {

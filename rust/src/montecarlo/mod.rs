@@ -699,10 +699,11 @@ fn simulate_with(
     }
     let blocks = plan.runs.div_ceil(BLOCK_RUNS);
     let threads = rayon::current_num_threads().max(1) as u64;
-    // Blocks in flight per wave: up to 4 per thread for load balance while their per-step
-    // buffers fit in 512 MiB, never fewer than one per thread (each at most 1 GiB).
+    // Blocks in flight per wave: as many as their per-step buffers allow in 64 MiB (fewer
+    // waits at the end of a wave for short horizons), at most 64 per thread and never fewer
+    // than one per thread (each buffer at most 1 GiB).
     let buffer_bytes = plan.horizon as u64 * 8;
-    let wave = ((512u64 << 20) / buffer_bytes.max(1)).clamp(threads, 4 * threads);
+    let wave = ((64u64 << 20) / buffer_bytes.max(1)).clamp(threads, 64 * threads);
 
     let mut total = vec![0.0f64; plan.horizon];
     let mut moments = Moments::default();

@@ -231,7 +231,19 @@ impl LaneCounter {
         }
     }
 
+    /// The sum of the counts of the lanes in `lanes`.
+    pub(crate) fn total(&self, lanes: W) -> u64 {
+        let planes = [self.ones, self.twos, self.fours, self.eights];
+        planes
+            .iter()
+            .chain(self.sixteens.iter())
+            .enumerate()
+            .map(|(weight, plane)| u64::from(popcount(and(*plane, lanes))) << weight)
+            .sum()
+    }
+
     /// Every lane's count.
+    #[inline(always)]
     pub(crate) fn counts(&self) -> [u64; RUNS] {
         let mut out = [0u64; RUNS];
         let planes = [self.ones, self.twos, self.fours, self.eights];

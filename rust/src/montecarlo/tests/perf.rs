@@ -88,8 +88,8 @@ fn env_or(name: &str, default: usize) -> usize {
 /// Throughput: `cargo test --release montecarlo::tests::perf::speed -- --ignored --nocapture`.
 /// Prints wall-clock steps/s and steps per CPU-second (the latter times the core count is
 /// what the machine does when nothing else runs). `MC_SPEED_FILTER` selects cases by name
-/// ("lanes" for the lane kernels; a leading ^ anchors it); `MC_SPEED_THREADS`, `MC_SPEED_HORIZON` and `MC_SPEED_REPS`
-/// override 2 threads, 10^4 steps and 5 repetitions (small values suit `valgrind --tool=callgrind`).
+/// ("lanes" for the lane kernels; a leading ^ anchors it); `MC_SPEED_THREADS`, `MC_SPEED_HORIZON`, `MC_SPEED_RUNS` and
+/// `MC_SPEED_REPS` override 2 threads, 10^4 steps, 8192 runs per thread and 5 repetitions (small values suit `valgrind --tool=callgrind`).
 #[test]
 #[ignore]
 fn speed() {
@@ -187,7 +187,7 @@ fn speed() {
             let state = cfg.mode == Mode::State;
             let cfg = McConfig {
                 horizon: env_or("MC_SPEED_HORIZON", 10_000),
-                runs: if state { 256 } else { 8192 } * threads as u64,
+                runs: env_or("MC_SPEED_RUNS", if state { 256 } else { 8192 } * threads) as u64,
                 ..cfg.clone()
             };
             // Best of five repetitions: the least disturbed by other processes.
