@@ -27,6 +27,26 @@ fn run(sys: &LinearSystem, cfg: &McConfig) -> Result<McResult> {
     simulate(sys, cfg, &AtomicBool::new(false), &AtomicU64::new(0))
 }
 
+/// The bit-sliced kernel (where the plan fits it) and the lane kernels, for the statistical
+/// checks that each must pass on its own.
+fn run_both(sys: &LinearSystem, cfg: &McConfig) -> [(&'static str, McResult); 2] {
+    let go = |bitslice| {
+        let kernels = Kernels {
+            isa: detect_isa(),
+            bitslice,
+        };
+        simulate_with(
+            sys,
+            cfg,
+            &AtomicBool::new(false),
+            &AtomicU64::new(0),
+            kernels,
+        )
+        .unwrap()
+    };
+    [("bit-sliced", go(true)), ("lanes", go(false))]
+}
+
 fn two_state_sys() -> LinearSystem {
     // Unstable mode 1.1 seen by C; Q is singular (rank 1).
     let a = DMatrix::from_row_slice(2, 2, &[1.1, 0.3, 0.0, 0.7]);
@@ -110,14 +130,15 @@ fn offline_matches_exact_period_average() {
         seed: 11,
         record_runs: false,
     };
-    let r = run(&sys, &cfg).unwrap();
-    assert_close("J_off", r.j, j_off, r.stderr, 4.0);
-    assert_eq!(r.high_power_rate, 1.0 / 7.0);
-    assert_eq!((r.flags_sent, r.flags_blocked), (0.0, 0.0));
-    assert_eq!(r.j, r.j_k[r.j_k.len() - 1]);
-    // Per step: k = 1 (mod 7) is always an arrival.
-    assert_eq!(r.mean_trace[0], tr[0]);
-    assert_eq!(r.mean_trace[7], tr[0]);
+    for (kernel, r) in run_both(&sys, &cfg) {
+        assert_close(&format!("J_off ({kernel})"), r.j, j_off, r.stderr, 4.0);
+        assert_eq!(r.high_power_rate, 1.0 / 7.0);
+        assert_eq!((r.flags_sent, r.flags_blocked), (0.0, 0.0));
+        assert_eq!(r.j, r.j_k[r.j_k.len() - 1]);
+        // Per step: k = 1 (mod 7) is always an arrival.
+        assert_eq!(r.mean_trace[0], tr[0]);
+        assert_eq!(r.mean_trace[7], tr[0]);
+    }
 }
 
 /// The corrected online formulas (ERRATA item 2), written out independently of `schedules`.
@@ -143,19 +164,21 @@ fn online_matches_corrected_formula() {
             seed,
             ..online(0.5, 2, mu, None)
         };
-        let r = run(&sys, &cfg).unwrap();
         let (j, rate) = j_online_closed(&tr, 0.5, 2, mu);
-        assert_close(&format!("J_on(mu = {mu})"), r.j, j, r.stderr, 4.0);
-        assert!(
-            (r.high_power_rate - rate).abs() < binomial_tol(rate, &cfg),
-            "mu = {mu}: {} vs {rate}",
-            r.high_power_rate
-        );
-        // No attacker: every flag is delivered, and all high-power steps but the first follow one.
-        assert_eq!(r.flags_blocked, 0.0);
-        let steps = (cfg.runs * cfg.horizon as u64) as f64;
-        let diff = (r.high_power_rate - r.flags_sent) * steps;
-        assert!(diff.abs() <= cfg.runs as f64, "{diff}");
+        for (kernel, r) in run_both(&sys, &cfg) {
+            assert_close(&format!("J_on(mu = {mu}, {kernel})"), r.j, j, r.stderr, 4.0);
+            assert!(
+                (r.high_power_rate - rate).abs() < binomial_tol(rate, &cfg),
+                "mu = {mu}, {kernel}: {} vs {rate}",
+                r.high_power_rate
+            );
+            // No attacker: every flag is delivered, and all high-power steps but the first
+            // follow one.
+            assert_eq!(r.flags_blocked, 0.0);
+            let steps = (cfg.runs * cfg.horizon as u64) as f64;
+            let diff = (r.high_power_rate - r.flags_sent) * steps;
+            assert!(diff.abs() <= cfg.runs as f64, "{diff}");
+        }
     }
     // μ = 1: the paper's example uses high power 1/7 of the time.
     assert!((j_online_closed(&tr, 0.5, 2, 1.0).1 - 1.0 / 7.0).abs() < 1e-15);
@@ -174,18 +197,20 @@ fn attack_matches_chain() {
         seed: 31,
         ..online(lam, 2, 1.0, Some(vec![true, false, false]))
     };
-    let r = run(&sys, &cfg).unwrap();
-    assert_close("J_attack", r.j, exact, r.stderr, 4.0);
-    // The counter runs over all flags: exactly one in three is blocked (up to the last cycle).
-    let steps = (cfg.runs * cfg.horizon as u64) as f64;
-    let (sent, blocked) = (r.flags_sent * steps, r.flags_blocked * steps);
-    assert!(
-        (sent / 3.0 - blocked).abs() <= cfg.runs as f64,
-        "{sent} {blocked}"
-    );
-    // Blocked flags do not raise the power.
-    let high = r.high_power_rate * steps;
-    assert!((high - (sent - blocked)).abs() <= cfg.runs as f64);
+    for (kernel, r) in run_both(&sys, &cfg) {
+        assert_close(&format!("J_attack ({kernel})"), r.j, exact, r.stderr, 4.0);
+        // The counter runs over all flags: exactly one in three is blocked (up to the last
+        // cycle).
+        let steps = (cfg.runs * cfg.horizon as u64) as f64;
+        let (sent, blocked) = (r.flags_sent * steps, r.flags_blocked * steps);
+        assert!(
+            (sent / 3.0 - blocked).abs() <= cfg.runs as f64,
+            "{kernel}: {sent} {blocked}"
+        );
+        // Blocked flags do not raise the power.
+        let high = r.high_power_rate * steps;
+        assert!((high - (sent - blocked)).abs() <= cfg.runs as f64);
+    }
 }
 
 /// (4) Protocols A and B are separate code paths with identical statistics, draw for draw.
@@ -205,9 +230,10 @@ fn protocols_agree() {
                 protocol: Protocol::A,
                 ..b.clone()
             };
-            let (ra, rb) = (run(&sys, &a).unwrap(), run(&sys, &b).unwrap());
-            assert_eq!(ra, rb, "{mode:?}, mu = {mu}");
-            assert!(rb.flags_blocked > 0.0);
+            for ((kernel, ra), (_, rb)) in run_both(&sys, &a).into_iter().zip(run_both(&sys, &b)) {
+                assert_eq!(ra, rb, "{mode:?}, mu = {mu}, {kernel}");
+                assert!(rb.flags_blocked > 0.0);
+            }
         }
     }
 }
@@ -574,4 +600,38 @@ fn reachable_tau() {
     assert_eq!(max_tau(&on(1.0), Some(&[true, false, false])), Some(4));
     assert_eq!(max_tau(&on(0.0), Some(&[true, false, true])), Some(9));
     assert_eq!(max_tau(&on(1.0), Some(&[true, true])), None);
+}
+
+/// Plans the bit-sliced kernel does not take run on the lane kernels, through the same entry.
+#[test]
+fn deep_plans_use_the_lane_kernels() {
+    let sys = scalar_sys();
+    let mut gap = vec![0u8; 41];
+    gap[0] = 1;
+    let five_runs: Vec<bool> = (0..10).map(|i| i % 2 == 0).collect();
+    let cases = [
+        // τ bound 40 > MAX_DEPTH.
+        McConfig {
+            schedule: McSchedule::Offline { pattern: gap },
+            ..online(0.5, 2, 1.0, None)
+        },
+        // Five runs of ones in the mask.
+        online(0.5, 2, 1.0, Some(five_runs)),
+        // A 40-bit memory under attack.
+        online(0.5, 40, 1.0, Some(vec![true, false])),
+        McConfig {
+            mode: Mode::State,
+            ..online(0.5, 2, 1.0, None)
+        },
+    ];
+    for base in cases {
+        let cfg = McConfig {
+            horizon: 200,
+            runs: BLOCK_RUNS + 3,
+            ..base
+        };
+        assert!(Plan::new(&sys, &cfg).unwrap().bitslice.is_none(), "{cfg:?}");
+        let [(_, auto), (_, lanes)] = run_both(&sys, &cfg);
+        assert_eq!(auto, lanes, "{cfg:?}");
+    }
 }
