@@ -35,7 +35,15 @@
 //! memory does not grow with `runs` (except for the optional per-run record
 //! [`McResult::delivered_per_run`], 8 bytes per run).
 //!
-//! Inside a block, tiles of [`LANES`] runs advance in lock-step (structure of arrays). In
+//! Two kernel families simulate a block. In covariance mode, plans with a holding-time bound
+//! ≤ 32, a memory ≤ 32 under attack and a mask with at most four runs of ones go to the
+//! bit-sliced kernel (`bitslice`): the block's 256 runs are the bit lanes of four words, about
+//! ten times faster. Every other plan, and state mode, uses the lane kernels below. Each family is deterministic in the seed and
+//! independent of threads and CPU features; the two consume randomness differently, so one seed
+//! gives different, equally distributed samples on each (tests check both against the exact
+//! values).
+//!
+//! In the lane kernels, tiles of [`LANES`] runs advance in lock-step (structure of arrays). In
 //! covariance mode the tile is processed as four groups of four lanes, each running a sub-chunk
 //! of steps with its whole state in registers: one kernel body (`group_body!`) instantiated on
 //! plain arrays (any target) and on AVX2 registers (x86-64, picked at run time). Tables of up to
@@ -55,7 +63,8 @@
 //!
 //! # Layout
 //!
-//! This file holds the public types, validation, the `Plan` and the block driver; `kernel` the
+//! This file holds the public types, validation, the `Plan` and the block driver; `bitslice`
+//! the bit-sliced covariance kernel (its word operations in `bitslice/words.rs`); `kernel` the
 //! lock-step protocol and the covariance kernels (with the four-lane operation sets in
 //! `kernel/lanes4.rs` and `kernel/lanes4_avx2.rs`); `state` the state-mode model and kernel;
 //! `tests` the unit tests (`tests/perf.rs`: the ignored throughput and memory checks).
