@@ -213,14 +213,57 @@ fn ziggurat() -> &'static Ziggurat {
 /// abscissa) in ~98.8% of cases, an exact rejection step otherwise. Exact up to the 53-bit
 /// resolution of the uniforms.
 pub fn normal(rng: &mut Xoshiro256pp) -> f64 {
-    let z = ziggurat();
-    loop {
-        let bits = rng.next_u64();
-        let i = (bits & (ZIG_LAYERS as u64 - 1)) as usize;
-        let u = 2.0 * u53_to_unit(bits >> 11) - 1.0; // [-1, 1)
-        if u.abs() < z.ratio[i] {
-            return u * z.x[i];
+    NormalSampler::new().draw(rng)
+}
+
+/// [`normal`] with the ziggurat's tables fetched once, for loops that draw many normals: the
+/// common case (one 64-bit draw, one compare) inlines into the caller, the rest stays out of
+/// line. Draws exactly what [`normal`] draws.
+#[derive(Clone, Copy)]
+pub struct NormalSampler(&'static Ziggurat);
+
+impl Default for NormalSampler {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl NormalSampler {
+    pub fn new() -> Self {
+        NormalSampler(ziggurat())
+    }
+
+    #[inline(always)]
+    pub fn draw(self, rng: &mut Xoshiro256pp) -> f64 {
+        match ziggurat_attempt(self.0, rng) {
+            Ok(x) => x,
+            Err(bits) => normal_retry(self.0, rng, bits),
         }
+    }
+}
+
+/// One ziggurat attempt's rectangle test: the normal if the point lies in its layer's
+/// rectangle, else the attempt's random bits (for the wedge or tail test).
+#[inline(always)]
+fn ziggurat_attempt(z: &Ziggurat, rng: &mut Xoshiro256pp) -> Result<f64, u64> {
+    let bits = rng.next_u64();
+    let i = (bits & (ZIG_LAYERS as u64 - 1)) as usize;
+    let u = 2.0 * u53_to_unit(bits >> 11) - 1.0; // [-1, 1)
+    if u.abs() < z.ratio[i] {
+        Ok(u * z.x[i])
+    } else {
+        Err(bits)
+    }
+}
+
+/// The rest of an attempt that missed its rectangle (`bits` are that attempt's), then whole
+/// attempts until one is accepted.
+#[cold]
+#[inline(never)]
+fn normal_retry(z: &Ziggurat, rng: &mut Xoshiro256pp, mut bits: u64) -> f64 {
+    loop {
+        let i = (bits & (ZIG_LAYERS as u64 - 1)) as usize;
+        let u = 2.0 * u53_to_unit(bits >> 11) - 1.0;
         if i == 0 {
             return normal_tail(rng, u < 0.0);
         }
@@ -231,6 +274,10 @@ pub fn normal(rng: &mut Xoshiro256pp) -> f64 {
         let f1 = (-0.5 * (z.x[i + 1] * z.x[i + 1] - xx * xx)).exp();
         if f1 + rng.next_f64() * (f0 - f1) < 1.0 {
             return xx;
+        }
+        match ziggurat_attempt(z, rng) {
+            Ok(x) => return x,
+            Err(b) => bits = b,
         }
     }
 }

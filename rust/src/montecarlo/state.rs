@@ -9,6 +9,7 @@ use super::kernel::{lane_sum, Params, Proto, Tile, TileOut};
 use super::{CHUNK_STEPS, LANES};
 use crate::error::{Error, Result};
 use crate::riccati::LinearSystem;
+use crate::rng::NormalSampler;
 
 // ---------------------------------------------------------------------------------------------
 // State-mode model.
@@ -148,6 +149,7 @@ pub(super) fn state_tile_impl<
     let mut proto = Proto::new(&tile.seeds);
     let side = &mut tile.side;
     let noise = &mut tile.noise;
+    let gauss = NormalSampler::new();
     // Lane-major error vectors.
     let mut es = vec![0.0; LANES * n];
     let mut e = vec![0.0; LANES * n];
@@ -159,7 +161,7 @@ pub(super) fn state_tile_impl<
     for l in 0..LANES {
         // e^s_0 ~ N(0, P̄).
         for z in zp.iter_mut() {
-            *z = noise[l].normal();
+            *z = gauss.draw(&mut noise[l]);
         }
         for (i, out) in es[l * n..(l + 1) * n].iter_mut().enumerate() {
             *out = dot(&model.lp[i * rp..(i + 1) * rp], &zp);
@@ -183,8 +185,12 @@ pub(super) fn state_tile_impl<
             for l in 0..LANES {
                 let x = if let Some(sc) = &scalar {
                     // n = m = 1: the same recursions on plain numbers.
-                    let zw = if rq == 1 { noise[l].normal() } else { 0.0 };
-                    let zv = noise[l].normal();
+                    let zw = if rq == 1 {
+                        gauss.draw(&mut noise[l])
+                    } else {
+                        0.0
+                    };
+                    let zv = gauss.draw(&mut noise[l]);
                     let esn = sc.f * es[l] + sc.g * zw - sc.h * zv;
                     es[l] = esn;
                     e[l] = if arrive[l] != 0 {
@@ -195,10 +201,10 @@ pub(super) fn state_tile_impl<
                     e[l] * e[l]
                 } else {
                     for z in zw.iter_mut() {
-                        *z = noise[l].normal();
+                        *z = gauss.draw(&mut noise[l]);
                     }
                     for z in zv.iter_mut() {
-                        *z = noise[l].normal();
+                        *z = gauss.draw(&mut noise[l]);
                     }
                     let es_l = &mut es[l * n..(l + 1) * n];
                     let e_l = &mut e[l * n..(l + 1) * n];
