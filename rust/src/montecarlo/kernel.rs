@@ -18,6 +18,8 @@ pub(super) struct Params<'a> {
     pub(super) mu_hi: u64,
     pub(super) mu_lo: u64,
     pub(super) z0: u64,
+    /// z0 + 1 (the reference kernel's long memory).
+    #[cfg_attr(not(test), allow(dead_code))]
     pub(super) z0p1: u64,
     pub(super) l_fixed: u64,
     pub(super) mask: &'a [u64],
@@ -28,6 +30,7 @@ pub(super) struct Params<'a> {
 }
 
 /// Resolves ties of the 16-bit Bernoulli slices with 48 more bits from the side streams.
+#[cfg(test)]
 #[cold]
 #[inline(never)]
 fn resolve_ties(mut hit: Lanes, tie: Lanes, side: &mut [Xoshiro256pp; LANES], lo: u64) -> Lanes {
@@ -39,6 +42,7 @@ fn resolve_ties(mut hit: Lanes, tie: Lanes, side: &mut [Xoshiro256pp; LANES], lo
     hit
 }
 
+#[cfg(test)]
 /// Bit `i` of the blocking mask (`i < mask_len`).
 #[inline(always)]
 fn mask_bit(mask: &[u64], i: u64) -> u64 {
@@ -46,6 +50,7 @@ fn mask_bit(mask: &[u64], i: u64) -> u64 {
     mask.get(w).map_or(0, |word| (word >> (i & 63)) & 1)
 }
 
+#[cfg(test)]
 /// Protocol B: a flag packet exists only when a flag is due; the attacker drops it per its mask.
 /// Returns 1 where the sensor receives a flag.
 #[inline(always)]
@@ -68,6 +73,7 @@ fn channel_b(flag: &Lanes, counter: &mut Lanes, blocked: &mut Lanes, p: &Params)
     delivered
 }
 
+#[cfg(test)]
 /// Protocol A: one bit every step (1 = flag); the attacker looks at 1-bits only and flips them to
 /// 0 per its mask. Returns the bit the sensor receives.
 #[inline(always)]
@@ -134,6 +140,7 @@ impl Proto {
     }
 
     /// One xoshiro256++ step in every lane.
+    #[cfg(test)]
     #[inline(always)]
     fn refill(&mut self) {
         for l in 0..LANES {
@@ -153,6 +160,7 @@ impl Proto {
     }
 
     /// An exact Bernoulli(T / 2^64) draw per lane, T = hi·2^48 + lo.
+    #[cfg(test)]
     #[inline(always)]
     fn bernoulli(&mut self, hi: u64, lo: u64, side: &mut [Xoshiro256pp; LANES]) -> Lanes {
         if self.avail == 0 {
@@ -176,7 +184,8 @@ impl Proto {
     }
 
     /// Step k: returns 1 where the packet arrives, and updates τ, the detector, the channel and
-    /// the attacker.
+    /// the attacker (the per-lane reference the grouped kernels are tested against).
+    #[cfg(test)]
     #[inline(always)]
     pub(super) fn step<
         const ONLINE: bool,
@@ -337,7 +346,7 @@ pub(super) enum Isa {
     /// Grouped kernel on AVX2 registers (x86-64, chosen at run time).
     #[cfg(target_arch = "x86_64")]
     Avx2,
-    /// The 16-lane [`Proto::step`] kernel that state mode uses; the reference in tests.
+    /// The 16-lane [`Proto::step`] kernel: the reference in tests.
     #[cfg(test)]
     Reference,
 }
@@ -355,7 +364,7 @@ pub(super) fn detect_isa() -> Isa {
 /// Steps per sub-chunk of the grouped kernels: each group of 4 lanes runs this many steps with
 /// its state in registers and writes its masked per-step values to a buffer (16 KiB), which is
 /// then reduced per step with [`lane_sum`] exactly as the 16-lane kernel does.
-const SUB_STEPS: usize = 128;
+pub(super) const SUB_STEPS: usize = 128;
 
 /// What a grouped kernel needs for lanes 4g..4g+4 over one sub-chunk.
 struct GroupArgs<'a, 'p> {
@@ -514,6 +523,58 @@ unsafe fn group_avx2<const O: bool, const M: bool, const A: bool, const P: bool>
     group_body!(simd, a, O, M, A, P)
 }
 
+/// Advances the tile's 16 runs by `rows.len()` (at most [`SUB_STEPS`]) steps with the grouped
+/// kernels: row s, lane l receives `tr[τ]` of lane l after that step (0 where `active` is 0),
+/// and `sum` each lane's running total. State mode passes the marker table [1, 0, 0, ...] to read
+/// the arrivals off the rows.
+#[allow(clippy::too_many_arguments)]
+pub(super) fn group_rows<const O: bool, const M: bool, const A: bool, const P: bool>(
+    isa: Isa,
+    p: &Params,
+    tr: &[f64],
+    proto: &mut Proto,
+    sum: &mut [f64; LANES],
+    side: &mut [Xoshiro256pp; LANES],
+    active: &Lanes,
+    rows: &mut [[f64; LANES]],
+) {
+    let (avail, pat) = (proto.avail, proto.pat);
+    let mut end = (avail, pat);
+    for g in 0..LANES / 4 {
+        let args = GroupArgs {
+            proto: &mut *proto,
+            sum: &mut *sum,
+            g,
+            p,
+            tr,
+            side: &mut *side,
+            active,
+            buf: &mut *rows,
+            avail,
+            pat,
+        };
+        end = match isa {
+            // SAFETY: `detect_isa` chose Avx2 after checking the CPU at run time; callers check
+            // the table and mask requirements (`check_tables`).
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2 => unsafe { group_avx2::<O, M, A, P>(args) },
+            _ => group_portable::<O, M, A, P>(args),
+        };
+    }
+    proto.avail = end.0;
+    proto.pat = end.1;
+}
+
+/// The kernels' requirements on their tables: a non-empty trace table holding index `p.last`,
+/// and a mask of `p.mask_len` bits.
+pub(super) fn check_tables(p: &Params, tr: &[f64]) -> Result<()> {
+    let words = p.mask_len.div_ceil(64);
+    if tr.is_empty() || p.last as usize >= tr.len() || (p.mask.len() as u64) < words {
+        return Err(Error::invalid("sys", "inconsistent kernel tables"));
+    }
+    Ok(())
+}
+
 pub(super) fn cov_tile<const O: bool, const M: bool, const A: bool, const P: bool>(
     isa: Isa,
     p: &Params,
@@ -521,10 +582,7 @@ pub(super) fn cov_tile<const O: bool, const M: bool, const A: bool, const P: boo
     tile: &mut Tile,
     cancel: &AtomicBool,
 ) -> Result<TileOut> {
-    let words = p.mask_len.div_ceil(64);
-    if tr.is_empty() || p.last as usize >= tr.len() || (p.mask.len() as u64) < words {
-        return Err(Error::invalid("sys", "inconsistent kernel tables"));
-    }
+    check_tables(p, tr)?;
     #[cfg(test)]
     if isa == Isa::Reference {
         return cov_tile_impl::<O, M, A, P>(p, tr, tile, cancel);
@@ -537,32 +595,18 @@ pub(super) fn cov_tile<const O: bool, const M: bool, const A: bool, const P: boo
             return Err(Error::Interrupted);
         }
         for sub in chunk.chunks_mut(SUB_STEPS) {
-            let (avail, pat) = (proto.avail, proto.pat);
-            let mut end = (avail, pat);
-            for g in 0..LANES / 4 {
-                let args = GroupArgs {
-                    proto: &mut proto,
-                    sum: &mut sum,
-                    g,
-                    p,
-                    tr,
-                    side: &mut tile.side,
-                    active: &tile.active,
-                    buf: &mut buf[..sub.len()],
-                    avail,
-                    pat,
-                };
-                end = match isa {
-                    // SAFETY: `detect_isa` chose Avx2 after checking the CPU at run time; the
-                    // table and mask requirements were checked above.
-                    #[cfg(target_arch = "x86_64")]
-                    Isa::Avx2 => unsafe { group_avx2::<O, M, A, P>(args) },
-                    _ => group_portable::<O, M, A, P>(args),
-                };
-            }
-            proto.avail = end.0;
-            proto.pat = end.1;
-            for (acc, row) in sub.iter_mut().zip(buf.iter()) {
+            let rows = &mut buf[..sub.len()];
+            group_rows::<O, M, A, P>(
+                isa,
+                p,
+                tr,
+                &mut proto,
+                &mut sum,
+                &mut tile.side,
+                &tile.active,
+                rows,
+            );
+            for (acc, row) in sub.iter_mut().zip(rows.iter()) {
                 *acc += lane_sum(row);
             }
         }

@@ -49,7 +49,9 @@
 //! plain arrays (any target) and on AVX2 registers (x86-64, picked at run time). Tables of up to
 //! 8 traces are read with in-register permutes instead of gathers. Every kernel performs the same
 //! integer logic and the same f64 additions in the same order, so all give bit-identical results
-//! (the tests compare them with the plain 16-lane reference kernel that state mode uses).
+//! (the tests compare them with the plain 16-lane reference kernel, `Proto::step`). State mode
+//! runs the protocol on the same grouped kernels, a sub-chunk ahead, and reads the arrivals off
+//! their rows, so both modes see the same protocol randomness.
 //!
 //! Bernoulli draws use 16-bit slices of 64-bit xoshiro256++ outputs (four draws per output),
 //! compared with the top 16 bits of the exact threshold T = ⌊p 2^64⌋; a tie (probability 2^-16)
@@ -457,7 +459,7 @@ fn run_tile(plan: &Plan, isa: Isa, tile: &mut Tile, cancel: &AtomicBool) -> Resu
         ($o:expr, $m:expr, $a:expr, $pa:expr) => {
             match &plan.state {
                 None => cov_tile::<$o, $m, $a, $pa>(isa, &p, &plan.tr, tile, cancel),
-                Some(model) => state_tile_impl::<$o, $m, $a, $pa>(&p, model, tile, cancel),
+                Some(model) => state_tile_impl::<$o, $m, $a, $pa>(isa, &p, model, tile, cancel),
             }
         };
     }

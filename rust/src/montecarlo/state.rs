@@ -5,7 +5,9 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use nalgebra::DMatrix;
 
-use super::kernel::{lane_sum, Params, Proto, Tile, TileOut};
+use super::kernel::{
+    check_tables, group_rows, lane_sum, Isa, Params, Proto, Tile, TileOut, SUB_STEPS,
+};
 use super::{CHUNK_STEPS, LANES};
 use crate::error::{Error, Result};
 use crate::riccati::LinearSystem;
@@ -140,6 +142,7 @@ pub(super) fn state_tile_impl<
     const ATTACK: bool,
     const PROTO_A: bool,
 >(
+    isa: Isa,
     p: &Params,
     model: &StateModel,
     tile: &mut Tile,
@@ -175,64 +178,88 @@ pub(super) fn state_tile_impl<
         lq: model.lq.first().copied().unwrap_or(0.0),
     });
     let mut sum = [0.0f64; LANES];
-    for chunk in tile.acc.chunks_mut((CHUNK_STEPS / (n * n).max(1)).max(1)) {
+    // The protocol runs ahead on the grouped covariance kernels, SUB_STEPS steps at a time; the
+    // marker table [1, 0, 0, ...] turns their rows into arrival indicators.
+    let marker: Vec<f64> = (0..=p.last).map(|t| f64::from(u8::from(t == 0))).collect();
+    check_tables(p, &marker)?;
+    let everyone = [u64::MAX; LANES];
+    let mut rows = [[0.0f64; LANES]; SUB_STEPS];
+    let mut ignored = [0.0f64; LANES];
+    let chunk_steps = (CHUNK_STEPS / (n * n).max(1)).max(1);
+    for chunk in tile
+        .acc
+        .chunks_mut(chunk_steps.div_ceil(SUB_STEPS) * SUB_STEPS)
+    {
         if cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
         }
-        for acc in chunk.iter_mut() {
-            let arrive = proto.step::<ONLINE, MU_DRAW, ATTACK, PROTO_A>(p, side);
-            let mut v = [0.0f64; LANES];
-            for l in 0..LANES {
-                let x = if let Some(sc) = &scalar {
-                    // n = m = 1: the same recursions on plain numbers.
-                    let zw = if rq == 1 {
-                        gauss.draw(&mut noise[l])
+        for sub in chunk.chunks_mut(SUB_STEPS) {
+            let rows = &mut rows[..sub.len()];
+            group_rows::<ONLINE, MU_DRAW, ATTACK, PROTO_A>(
+                isa,
+                p,
+                &marker,
+                &mut proto,
+                &mut ignored,
+                side,
+                &everyone,
+                rows,
+            );
+            for (acc, row) in sub.iter_mut().zip(rows.iter()) {
+                let arrive: [bool; LANES] = std::array::from_fn(|l| row[l] != 0.0);
+                let mut v = [0.0f64; LANES];
+                for l in 0..LANES {
+                    let x = if let Some(sc) = &scalar {
+                        // n = m = 1: the same recursions on plain numbers.
+                        let zw = if rq == 1 {
+                            gauss.draw(&mut noise[l])
+                        } else {
+                            0.0
+                        };
+                        let zv = gauss.draw(&mut noise[l]);
+                        let esn = sc.f * es[l] + sc.g * zw - sc.h * zv;
+                        es[l] = esn;
+                        e[l] = if arrive[l] {
+                            esn
+                        } else {
+                            sc.a * e[l] + sc.lq * zw
+                        };
+                        e[l] * e[l]
                     } else {
-                        0.0
-                    };
-                    let zv = gauss.draw(&mut noise[l]);
-                    let esn = sc.f * es[l] + sc.g * zw - sc.h * zv;
-                    es[l] = esn;
-                    e[l] = if arrive[l] != 0 {
-                        esn
-                    } else {
-                        sc.a * e[l] + sc.lq * zw
-                    };
-                    e[l] * e[l]
-                } else {
-                    for z in zw.iter_mut() {
-                        *z = gauss.draw(&mut noise[l]);
-                    }
-                    for z in zv.iter_mut() {
-                        *z = gauss.draw(&mut noise[l]);
-                    }
-                    let es_l = &mut es[l * n..(l + 1) * n];
-                    let e_l = &mut e[l * n..(l + 1) * n];
-                    // e^s_k = (I-KC) A e^s_{k-1} + (I-KC) w_{k-1} - K v_k.
-                    for (i, out) in es_new.iter_mut().enumerate() {
-                        *out = dot(&model.f[i * n..(i + 1) * n], es_l)
-                            + dot(&model.g[i * rq..(i + 1) * rq], &zw)
-                            - dot(&model.h[i * m..(i + 1) * m], &zv);
-                    }
-                    es_l.copy_from_slice(&es_new);
-                    if arrive[l] != 0 {
-                        e_l.copy_from_slice(&es_new);
-                    } else {
-                        // e_k = A e_{k-1} + w_{k-1}.
-                        for (i, out) in e_new.iter_mut().enumerate() {
-                            *out = dot(&model.a[i * n..(i + 1) * n], e_l)
-                                + dot(&model.lq[i * rq..(i + 1) * rq], &zw);
+                        for z in zw.iter_mut() {
+                            *z = gauss.draw(&mut noise[l]);
                         }
-                        e_l.copy_from_slice(&e_new);
-                    }
-                    e_l.iter().map(|y| y * y).sum()
-                };
-                // Only an overflowed error gives NaN (inf - inf); report it as +inf.
-                let x = if x.is_nan() { f64::INFINITY } else { x };
-                sum[l] += x;
-                v[l] = f64::from_bits(x.to_bits() & tile.active[l]);
+                        for z in zv.iter_mut() {
+                            *z = gauss.draw(&mut noise[l]);
+                        }
+                        let es_l = &mut es[l * n..(l + 1) * n];
+                        let e_l = &mut e[l * n..(l + 1) * n];
+                        // e^s_k = (I-KC) A e^s_{k-1} + (I-KC) w_{k-1} - K v_k.
+                        for (i, out) in es_new.iter_mut().enumerate() {
+                            *out = dot(&model.f[i * n..(i + 1) * n], es_l)
+                                + dot(&model.g[i * rq..(i + 1) * rq], &zw)
+                                - dot(&model.h[i * m..(i + 1) * m], &zv);
+                        }
+                        es_l.copy_from_slice(&es_new);
+                        if arrive[l] {
+                            e_l.copy_from_slice(&es_new);
+                        } else {
+                            // e_k = A e_{k-1} + w_{k-1}.
+                            for (i, out) in e_new.iter_mut().enumerate() {
+                                *out = dot(&model.a[i * n..(i + 1) * n], e_l)
+                                    + dot(&model.lq[i * rq..(i + 1) * rq], &zw);
+                            }
+                            e_l.copy_from_slice(&e_new);
+                        }
+                        e_l.iter().map(|y| y * y).sum()
+                    };
+                    // Only an overflowed error gives NaN (inf - inf); report it as +inf.
+                    let x = if x.is_nan() { f64::INFINITY } else { x };
+                    sum[l] += x;
+                    v[l] = f64::from_bits(x.to_bits() & tile.active[l]);
+                }
+                *acc += lane_sum(&v);
             }
-            *acc += lane_sum(&v);
         }
     }
     Ok(TileOut {

@@ -127,6 +127,13 @@ fn speed() {
             },
         ),
         (
+            "state online attack 1/5",
+            McConfig {
+                mode: Mode::State,
+                ..online(0.5, 2, 1.0, Some(vec![true, false, false, false, false]))
+            },
+        ),
+        (
             "state 10-state online z0=2 mu=1",
             McConfig {
                 mode: Mode::State,
