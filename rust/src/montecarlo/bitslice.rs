@@ -10,9 +10,11 @@
 //!
 //! A Bernoulli(p) draw compares each lane's uniform U with the exact threshold T = ⌊p 2^64⌋ bit by
 //! bit from the most significant, one random word per bit (bit l of the word belongs to lane l),
-//! and stops once every lane is decided or T has no further one bits (the undecided lanes then
-//! have U ≥ T). Each lane hits iff U < T: exactly Bernoulli(T / 2^64), as in the lane kernels. It
-//! takes about log2(256) + 1.3 words for a generic p and one word for p = 1/2.
+//! and stops once every lane that needs a draw is decided or T has no further one bits (the
+//! undecided lanes then have U ≥ T). Each lane hits iff U < T: exactly Bernoulli(T / 2^64), as in
+//! the lane kernels. Only low-power lanes draw the channel, and the μ draw is made only where the
+//! zero count is exactly z0 (the one place it matters); a draw for all 256 lanes takes about
+//! log2(256) + 1.3 words for a generic p, one word for p = 1/2, none when no lane needs it.
 //!
 //! Tr P_k summed over runs is Σ_j tr[j] n_j(k), with the histogram n_j(k) of τ read off the
 //! thermometer by popcounts. Each run's own sum Σ_k tr[τ_k] (for the standard error) needs each

@@ -38,10 +38,10 @@
 //! Two kernel families simulate a block. In covariance mode, plans with a holding-time bound
 //! ≤ 32, a memory ≤ 32 under attack and a mask with at most four runs of ones go to the
 //! bit-sliced kernel (`bitslice`): the block's 256 runs are the bit lanes of four words, about
-//! ten times faster. Every other plan, and state mode, uses the lane kernels below. Each family is deterministic in the seed and
-//! independent of threads and CPU features; the two consume randomness differently, so one seed
-//! gives different, equally distributed samples on each (tests check both against the exact
-//! values).
+//! ten times faster. Every other plan, and state mode, uses the lane kernels below. Each family
+//! is deterministic in the seed and independent of threads and CPU features; the two consume
+//! randomness differently, so one seed gives different, equally distributed samples on each
+//! (tests check both against the exact values).
 //!
 //! In the lane kernels, tiles of [`LANES`] runs advance in lock-step (structure of arrays). In
 //! covariance mode the tile is processed as four groups of four lanes, each running a sub-chunk
