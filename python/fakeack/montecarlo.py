@@ -313,6 +313,13 @@ def simulate(
     -----
     Runs in parallel on all cores with the GIL released; Ctrl-C raises ``KeyboardInterrupt``
     within a fraction of a second.
+
+    Covariance mode simulates 256 runs at once as the bit lanes of four machine words whenever the
+    holding time is bounded by 32 (and the memory under attack too) and the attack mask has at
+    most four runs of ones; other plans use a lane-parallel kernel, as does state mode. Both are
+    exact simulations of the same protocol, but they consume the random streams differently: for
+    one seed, a covariance run and a state run of such a plan are different (equally distributed)
+    samples, not paired ones.
     """
     core = _core(system)
     lam = as_probability("lam", lam)
