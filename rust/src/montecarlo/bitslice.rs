@@ -354,33 +354,22 @@ unsafe fn block_avx2<
     body::<O, M, A, P, D, B, true>(p, b, cancel)
 }
 
-/// The AVX2 kernel for one flag combination, specialised on the smallest thermometer size
-/// that holds `levels` and on the counter width (B = 1 when there is no attacker).
+/// The AVX2 kernel for flags ($o, $m, $a, $pa) and counter width $b, specialised on the
+/// smallest thermometer size that holds `levels`.
 #[cfg(target_arch = "x86_64")]
-macro_rules! avx2_sized {
-    ($o:expr, $m:expr, $a:expr, $pa:expr, $levels:expr, $wide:expr, $args:expr) => {{
-        let (p, b, cancel) = $args;
+macro_rules! avx2_by_depth {
+    ($o:expr, $m:expr, $a:expr, $pa:expr, $b:literal, $levels:expr, $p:ident, $blk:ident, $c:ident) => {
         // SAFETY (all arms): the caller checked AVX2 and POPCNT at run time.
         unsafe {
-            match ($levels, $a, $wide) {
-                (0..=2, false, _) => block_avx2::<$o, $m, $a, $pa, 2, 1>(p, b, cancel),
-                (3..=4, false, _) => block_avx2::<$o, $m, $a, $pa, 4, 1>(p, b, cancel),
-                (5..=8, false, _) => block_avx2::<$o, $m, $a, $pa, 8, 1>(p, b, cancel),
-                (9..=16, false, _) => block_avx2::<$o, $m, $a, $pa, 16, 1>(p, b, cancel),
-                (_, false, _) => block_avx2::<$o, $m, $a, $pa, 32, 1>(p, b, cancel),
-                (0..=2, true, false) => block_avx2::<$o, $m, $a, $pa, 2, 4>(p, b, cancel),
-                (3..=4, true, false) => block_avx2::<$o, $m, $a, $pa, 4, 4>(p, b, cancel),
-                (5..=8, true, false) => block_avx2::<$o, $m, $a, $pa, 8, 4>(p, b, cancel),
-                (9..=16, true, false) => block_avx2::<$o, $m, $a, $pa, 16, 4>(p, b, cancel),
-                (_, true, false) => block_avx2::<$o, $m, $a, $pa, 32, 4>(p, b, cancel),
-                (0..=2, true, true) => block_avx2::<$o, $m, $a, $pa, 2, 64>(p, b, cancel),
-                (3..=4, true, true) => block_avx2::<$o, $m, $a, $pa, 4, 64>(p, b, cancel),
-                (5..=8, true, true) => block_avx2::<$o, $m, $a, $pa, 8, 64>(p, b, cancel),
-                (9..=16, true, true) => block_avx2::<$o, $m, $a, $pa, 16, 64>(p, b, cancel),
-                (_, true, true) => block_avx2::<$o, $m, $a, $pa, 32, 64>(p, b, cancel),
+            match $levels {
+                0..=2 => block_avx2::<$o, $m, $a, $pa, 2, $b>($p, $blk, $c),
+                3..=4 => block_avx2::<$o, $m, $a, $pa, 4, $b>($p, $blk, $c),
+                5..=8 => block_avx2::<$o, $m, $a, $pa, 8, $b>($p, $blk, $c),
+                9..=16 => block_avx2::<$o, $m, $a, $pa, 16, $b>($p, $blk, $c),
+                _ => block_avx2::<$o, $m, $a, $pa, 32, $b>($p, $blk, $c),
             }
         }
-    }};
+    };
 }
 
 /// Runs one block with the kernel for (online, μ draw, attack, protocol A), on AVX2 if `avx2`
@@ -395,28 +384,30 @@ pub(super) fn run_block(
     #[cfg(target_arch = "x86_64")]
     if avx2 && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("popcnt") {
         let levels = p.levels(flags.1, flags.2);
+        // Counter planes: none without an attacker, 4 for masks up to 15 long, else 64.
         let wide = p.counter_bits() > 4;
-        let args = (p, b, cancel);
-        return match flags {
-            (false, _, _, _) => avx2_sized!(false, false, false, false, levels, wide, args),
-            (true, false, false, _) => avx2_sized!(true, false, false, false, levels, wide, args),
-            (true, true, false, _) => avx2_sized!(true, true, false, false, levels, wide, args),
-            (true, false, true, false) => avx2_sized!(true, false, true, false, levels, wide, args),
-            (true, false, true, true) => avx2_sized!(true, false, true, true, levels, wide, args),
-            (true, true, true, false) => avx2_sized!(true, true, true, false, levels, wide, args),
-            (true, true, true, true) => avx2_sized!(true, true, true, true, levels, wide, args),
-        };
+        // Only attacked kernels have counter planes: monomorphise B = 4 and 64 for those alone.
+        macro_rules! sized {
+            ($o:tt, $m:tt, false, $pa:tt) => {
+                avx2_by_depth!($o, $m, false, $pa, 1, levels, p, b, cancel)
+            };
+            ($o:tt, $m:tt, true, $pa:tt) => {
+                if wide {
+                    avx2_by_depth!($o, $m, true, $pa, 64, levels, p, b, cancel)
+                } else {
+                    avx2_by_depth!($o, $m, true, $pa, 4, levels, p, b, cancel)
+                }
+            };
+        }
+        return by_flags!(flags, sized);
     }
     let _ = avx2;
-    match flags {
-        (false, _, _, _) => block_portable::<false, false, false, false>(p, b, cancel),
-        (true, false, false, _) => block_portable::<true, false, false, false>(p, b, cancel),
-        (true, true, false, _) => block_portable::<true, true, false, false>(p, b, cancel),
-        (true, false, true, false) => block_portable::<true, false, true, false>(p, b, cancel),
-        (true, false, true, true) => block_portable::<true, false, true, true>(p, b, cancel),
-        (true, true, true, false) => block_portable::<true, true, true, false>(p, b, cancel),
-        (true, true, true, true) => block_portable::<true, true, true, true>(p, b, cancel),
+    macro_rules! portable {
+        ($o:expr, $m:expr, $a:expr, $pa:expr) => {
+            block_portable::<$o, $m, $a, $pa>(p, b, cancel)
+        };
     }
+    by_flags!(flags, portable)
 }
 
 #[cfg(test)]

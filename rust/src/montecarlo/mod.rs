@@ -79,6 +79,22 @@ use crate::error::{check_lam, check_mu, Error, Result};
 use crate::riccati::LinearSystem;
 use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
 
+/// Calls `$go!(ONLINE, MU_DRAW, ATTACK, PROTO_A)` with the const-generic kernel flags matching
+/// the run-time tuple `$flags` (an offline plan has no detector, an unattacked one no channel).
+macro_rules! by_flags {
+    ($flags:expr, $go:ident) => {
+        match $flags {
+            (false, _, _, _) => $go!(false, false, false, false),
+            (true, false, false, _) => $go!(true, false, false, false),
+            (true, true, false, _) => $go!(true, true, false, false),
+            (true, false, true, false) => $go!(true, false, true, false),
+            (true, false, true, true) => $go!(true, false, true, true),
+            (true, true, true, false) => $go!(true, true, true, false),
+            (true, true, true, true) => $go!(true, true, true, true),
+        }
+    };
+}
+
 mod bitslice;
 mod kernel;
 mod state;
@@ -427,6 +443,16 @@ impl Plan {
         })
     }
 
+    /// The kernels' const-generic flags: (online, μ draw, attack, protocol A).
+    fn flags(&self) -> (bool, bool, bool, bool) {
+        (
+            self.online,
+            self.mu_draw,
+            self.mask.is_some(),
+            self.protocol == Protocol::A,
+        )
+    }
+
     fn params(&self) -> Params<'_> {
         let low = 64 - SLICE_BITS;
         let cap = self.horizon as u64 + 1;
@@ -463,17 +489,7 @@ fn run_tile(plan: &Plan, isa: Isa, tile: &mut Tile, cancel: &AtomicBool) -> Resu
             }
         };
     }
-    let attack = plan.mask.is_some();
-    let proto_a = plan.protocol == Protocol::A;
-    match (plan.online, plan.mu_draw, attack, proto_a) {
-        (false, _, _, _) => go!(false, false, false, false),
-        (true, false, false, _) => go!(true, false, false, false),
-        (true, true, false, _) => go!(true, true, false, false),
-        (true, false, true, false) => go!(true, false, true, false),
-        (true, false, true, true) => go!(true, false, true, true),
-        (true, true, true, false) => go!(true, true, true, false),
-        (true, true, true, true) => go!(true, true, true, true),
-    }
+    by_flags!(plan.flags(), go)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -551,15 +567,9 @@ fn run_bitslice_block(
     let avx2 = isa == Isa::Avx2;
     #[cfg(not(target_arch = "x86_64"))]
     let avx2 = false;
-    let flags = (
-        plan.online,
-        plan.mu_draw,
-        plan.mask.is_some(),
-        plan.protocol == Protocol::A,
-    );
     let res = bitslice::run_block(
         bs,
-        flags,
+        plan.flags(),
         avx2,
         &mut BsBlock {
             seed: plan.seed,
