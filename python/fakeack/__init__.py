@@ -15,6 +15,7 @@ from .attack import (
     stationary_distribution,
     stationary_gth,
 )
+from .attacks import MaskBlocking, PeriodicBlocking
 from .detection import (
     Detection,
     DetectionRates,
@@ -60,6 +61,8 @@ from .threshold import (
 __version__ = "0.1.0"
 
 __all__ = [
+    "MaskBlocking",
+    "PeriodicBlocking",
     "Detection",
     "DetectionRates",
     "delivered_flag_rate",

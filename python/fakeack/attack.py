@@ -9,6 +9,7 @@ import scipy.sparse as sp
 
 from . import _fakeack
 from ._validate import as_int, as_probability
+from .attacks import as_mask
 from .system import _core
 
 __all__ = [
@@ -171,26 +172,6 @@ def j_attack(s: Any, lam: Any, z0: Any, r: Any, t: Any, mu: Any = 1.0) -> float:
     lam, z0, r, t = _check(lam, z0, r, t)
     mu = as_probability("mu", mu, closed=True)
     return core.j_attack(lam, z0, r, t, mu)
-
-
-#: Longest blocking mask (in flag-ACKs per period) accepted.
-MAX_MASK = 10_000_000
-
-
-def as_mask(mask: Any) -> list[bool]:
-    """A non-empty 1-D 0/1 (or bool) blocking mask as a list of bools."""
-    if isinstance(mask, (str, bytes)) or mask is None:
-        raise TypeError(f"mask must be a sequence of 0/1, got {type(mask).__name__}")
-    arr = np.asarray(mask)
-    if arr.size > MAX_MASK:
-        raise ValueError(f"mask: longer than {MAX_MASK} flag-ACKs")
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"mask must be a non-empty 1-D sequence of 0/1, got shape {arr.shape}")
-    if arr.dtype.kind not in "biu" and not (arr.dtype.kind == "f" and np.all(np.isin(arr, (0, 1)))):
-        raise TypeError(f"mask must hold 0/1 or booleans, got dtype {arr.dtype}")
-    if not np.all(np.isin(arr, (0, 1))):
-        raise ValueError("mask must hold only 0 and 1")
-    return [bool(x) for x in arr]
 
 
 def general_attack_chain(

@@ -12,7 +12,7 @@ import numpy as np
 
 from . import _fakeack
 from ._validate import as_int, as_probability, as_ratio
-from .attack import MAX_MASK, as_mask
+from .attacks import MAX_MASK, as_mask
 from .schedules import design_online, offline_schedule
 from .system import _core
 

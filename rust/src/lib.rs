@@ -8,6 +8,7 @@
 //! *weighted* traces, which stay finite where `tr_i` alone would overflow), `tau` the holding time
 //! since the last arrival and `sigma` the attacker's flag-ACK counter.
 
+pub mod attack;
 pub mod chain;
 pub mod error;
 pub mod general;
@@ -25,4 +26,5 @@ pub mod transient;
 #[cfg(feature = "python")]
 mod bindings;
 
+pub use attack::Attack;
 pub use error::{Error, Result};
