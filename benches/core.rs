@@ -165,7 +165,8 @@ fn bench_sweep(c: &mut Criterion) {
             &t_max,
             |b, &tm| {
                 b.iter(|| {
-                    let seg = Segments::for_system(&sys, LAM, 2, 1.0, tm - 1).unwrap();
+                    let design = fakeack::OnlineDesign::fixed(2).unwrap();
+                    let seg = Segments::for_system(&sys, LAM, design, tm - 1).unwrap();
                     black_box(sweep::sweep(&seg, black_box(tm)).unwrap())
                 })
             },

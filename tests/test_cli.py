@@ -53,7 +53,7 @@ def no_temp_files(d: Path) -> bool:
 def fake_simulate(monkeypatch):
     """A stand-in for the compiled Monte Carlo whose answer (J = 5 +- 0.01) is far from every exact J_H."""
 
-    def fake(core, lam, kind, pattern, z0, mu, mask, mode, protocol, horizon, runs, seed, bar, *rest):
+    def fake(core, lam, kind, p, q, z0, mu, attack, mode, protocol, horizon, runs, seed, bar, *rest):
         j = np.full(horizon, 5.0)
         return dict(j_k=j, mean_trace=j, j=5.0, stderr=0.01, high_power_rate=0.1, flags_sent=0.1, flags_blocked=0.0)
 

@@ -42,9 +42,9 @@ def test_interval_moments_by_series():
 
 
 def test_delivered_rate_against_chain_and_simulation(paper):
-    for attack in [(1, 5), (2, 3), fa.AttackPattern([1, 0, 1, 1, 0])]:
+    for attack in [(1, 5), (2, 3), fa.MaskBlocking([1, 0, 1, 1, 0])]:
         rate = fa.delivered_flag_rate(0.5, 2, attack)
-        mask = list(attack.mask) if isinstance(attack, fa.AttackPattern) else [1] * attack[0] + [0] * (attack[1] - attack[0])
+        mask = list(attack.mask) if isinstance(attack, fa.MaskBlocking) else [1] * attack[0] + [0] * (attack[1] - attack[0])
         # Independent: the general chain's stationary law, probability of an unblocked flag.
         states, T = fa.general_attack_chain(0.5, 2, mask)
         pi = fa.stationary_gth(T)

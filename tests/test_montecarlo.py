@@ -38,7 +38,7 @@ def test_paper_example_all_schedules(paper, protocol):
 
 
 def test_every_flag_blocked_is_j_max(paper):
-    res = fa.simulate(paper, 0.5, fa.OnlineSchedule(2), H, RUNS, seed=8, attack=fa.AttackPattern([1]))
+    res = fa.simulate(paper, 0.5, fa.OnlineSchedule(2), H, RUNS, seed=8, attack=fa.MaskBlocking([1]))
     close(res, fa.j_max(paper, 0.5))
     assert res.high_power_rate < 1e-3  # only the initial step
 
@@ -57,7 +57,7 @@ def test_mu_below_one_and_masks(paper):
     res = fa.simulate(paper, 0.5, design, H, RUNS, seed=5, attack=(2, 3))
     close(res, fa.j_attack(paper, 0.5, design.z0, 2, 3, mu=design.mu))
     mask = [1, 0, 1, 1, 0, 0, 0]
-    res = fa.simulate(paper, 0.5, design, H, RUNS, seed=6, attack=fa.AttackPattern(mask))
+    res = fa.simulate(paper, 0.5, design, H, RUNS, seed=6, attack=fa.MaskBlocking(mask))
     close(res, fa.j_attack_pattern(paper, 0.5, design.z0, mask, design.mu))
 
 
@@ -155,20 +155,32 @@ def test_gil_released_during_simulation(paper):
 
 
 @pytest.mark.skipif(sys.platform == "win32", reason="POSIX signals")
-def test_ctrl_c_stops_within_a_second(paper):
+def test_ctrl_c_stops_within_a_second(paper, monkeypatch):
+    """A SIGINT sent while the simulation runs raises KeyboardInterrupt within a second.
+
+    The signal comes from a thread that the first progress report starts, so it always lands
+    while the kernel runs (a fixed timer could fire before the call starts on a loaded machine).
+    """
+    import fakeack.montecarlo as mc
+
     fired = {}
 
     def interrupt():
         fired["t"] = time.monotonic()
         os.kill(os.getpid(), signal.SIGINT)
 
-    timer = threading.Timer(0.3, interrupt)
-    timer.start()
+    class SignalOnFirstReport(mc._Progress):
+        def __call__(self, done):
+            if "thread" not in fired:
+                fired["thread"] = threading.Thread(target=interrupt)
+                fired["thread"].start()
+
+    monkeypatch.setattr(mc, "_Progress", SignalOnFirstReport)
     with pytest.raises(KeyboardInterrupt):
         # ~10^12 steps: hours if not interrupted.
         fa.simulate(paper, 0.5, fa.OnlineSchedule(2), 10_000, 10**8, seed=1, progress=False)
     assert time.monotonic() - fired["t"] < 1.0
-    timer.join()
+    fired["thread"].join()
     # The process is responsive and can simulate again.
     fa.simulate(paper, 0.5, fa.OnlineSchedule(2), 10, 10, seed=1)
 
@@ -219,3 +231,11 @@ def test_trace_curve_is_array_like(paper):
 def test_recording_too_many_runs_refused(paper):
     with pytest.raises(ValueError, match="runs"):
         fa.simulate(paper, 0.5, fa.OnlineSchedule(2), 10, 2**29, record_runs=True)
+
+
+def test_attack_pattern_is_a_deprecated_spelling():
+    with pytest.warns(DeprecationWarning, match="MaskBlocking"):
+        att = fa.AttackPattern([1, 0, 0])
+    assert att == fa.MaskBlocking([1, 0, 0])
+    with pytest.warns(DeprecationWarning, match="PeriodicBlocking"):
+        assert fa.AttackPattern.first(1, 5) == fa.PeriodicBlocking(1, 5)

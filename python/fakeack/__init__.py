@@ -24,6 +24,7 @@ from .detection import (
     detection_rates,
     estimate_beta,
     flag_interval_moments,
+    flag_rates,
 )
 from .montecarlo import (
     AttackPattern,
@@ -70,6 +71,7 @@ __all__ = [
     "detection_rates",
     "estimate_beta",
     "flag_interval_moments",
+    "flag_rates",
     "AttackPattern",
     "OfflineSchedule",
     "OnlineSchedule",

@@ -7,16 +7,20 @@ import numpy as np
 import numpy.typing as npt
 
 __all__ = [
+    "Attack",
     "ConvergenceError",
+    "DEFAULT_MAX_ITER",
+    "DEFAULT_TOL",
     "MAX_BUILD_STATES",
     "MAX_VECTOR_STATES",
     "System",
     "attack_chain",
     "balance_residual",
-    "general_chain",
+    "flag_rates",
+    "general_attack_chain",
+    "high_power_rate",
     "num_states",
     "offline_schedule",
-    "online_high_power_rate",
     "simulate",
     "stationary_gth",
     "stationary_structured",
@@ -24,8 +28,21 @@ __all__ = [
 
 MAX_BUILD_STATES: int
 MAX_VECTOR_STATES: int
+DEFAULT_TOL: float
+DEFAULT_MAX_ITER: int
 
 class ConvergenceError(ValueError): ...
+
+@final
+class Attack:
+    @staticmethod
+    def periodic(r: int, t: int) -> Attack: ...
+    @staticmethod
+    def mask(mask: list[bool]) -> Attack: ...
+
+_CsrArrays = tuple[
+    npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]
+]
 
 @final
 class System:
@@ -44,14 +61,12 @@ class System:
     @property
     def iterations(self) -> int: ...
     @property
-    def rho(self) -> float: ...
+    def spectral_radius(self) -> float: ...
     def weighted_traces(self, weight: float, n: int) -> npt.NDArray[np.float64]: ...
     def j_offline(self, lam: float, p: int, q: int) -> float: ...
     def j_online(self, lam: float, z0: int, mu: float) -> float: ...
     def j_max(self, lam: float) -> float: ...
-    def j_attack(self, lam: float, z0: int, r: int, t: int, mu: float) -> float: ...
-    def j_attack_pattern(self, lam: float, z0: int, mu: float, mask: list[bool]) -> float: ...
-    def flag_rates(self, lam: float, z0: int, mu: float, mask: list[bool]) -> tuple[float, float]: ...
+    def j_attack(self, lam: float, z0: int, mu: float, attack: Attack) -> float: ...
     def j_attack_limit(self, lam: float, z0: int, mu: float, beta: float) -> float: ...
     def beta_sweep(
         self, lam: float, z0: int, mu: float, t_max: int
@@ -59,42 +74,39 @@ class System:
         npt.NDArray[np.uint32], npt.NDArray[np.uint32], npt.NDArray[np.float64], npt.NDArray[np.float64]
     ]: ...
     def beta_bar(
-        self, lam: float, z0: int, mu: float, t_max: int, j_ref: float
-    ) -> tuple[tuple[int, int] | None, float, float]: ...
-    def curve_offline(self, lam: float, pattern: list[int], horizon: int) -> npt.NDArray[np.float64]: ...
+        self, lam: float, p: int, q: int, z0: int, mu: float, t_max: int
+    ) -> tuple[tuple[int, int] | None, float, float, float, float]: ...
+    def choose_schedule(
+        self, lam: float, p: int, q: int, z0: int, mu: float, beta: float
+    ) -> tuple[bool, float, float, float, float]: ...
+    def curve_offline(self, lam: float, p: int, q: int, horizon: int) -> npt.NDArray[np.float64]: ...
     def curve_online(
-        self, lam: float, z0: int, mu: float, mask: list[bool], horizon: int
+        self, lam: float, z0: int, mu: float, attack: Attack | None, horizon: int
     ) -> npt.NDArray[np.float64]: ...
     def worst_mask(
         self, lam: float, z0: int, mu: float, t: int, blocked: int
     ) -> tuple[list[bool], float, float]: ...
 
 def offline_schedule(p: int, q: int) -> npt.NDArray[np.int64]: ...
-def online_high_power_rate(lam: float, z0: int, mu: float) -> float: ...
+def high_power_rate(lam: float, z0: int, mu: float) -> float: ...
+def flag_rates(lam: float, z0: int, mu: float, attack: Attack | None) -> tuple[float, float]: ...
 def num_states(z0: int, r: int, t: int) -> int: ...
-def attack_chain(
-    lam: float, z0: int, r: int, t: int
-) -> tuple[
-    npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]
-]: ...
+def attack_chain(lam: float, z0: int, r: int, t: int) -> _CsrArrays: ...
 def stationary_structured(lam: float, z0: int, r: int, t: int) -> npt.NDArray[np.float64]: ...
 def stationary_gth(
     indptr: npt.NDArray[np.int64], indices: npt.NDArray[np.int64], data: npt.NDArray[np.float64]
 ) -> npt.NDArray[np.float64]: ...
 def balance_residual(lam: float, z0: int, r: int, t: int, pi: npt.NDArray[np.float64]) -> float: ...
-def general_chain(
-    lam: float, z0: int, mu: float, mask: list[bool]
-) -> tuple[
-    npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]
-]: ...
+def general_attack_chain(lam: float, z0: int, mu: float, attack: Attack) -> _CsrArrays: ...
 def simulate(
     system: System,
     lam: float,
     kind: str,
-    pattern: list[int],
+    p: int,
+    q: int,
     z0: int,
     mu: float,
-    mask: list[bool] | None,
+    attack: Attack | None,
     mode: str,
     protocol: str,
     horizon: int,

@@ -9,7 +9,7 @@ import scipy.sparse as sp
 
 from . import _fakeack
 from ._validate import as_int, as_probability
-from .attacks import as_mask
+from .attacks import MaskBlocking, PeriodicBlocking, attack_argument, core_attack
 from .system import _core
 
 __all__ = [
@@ -24,13 +24,9 @@ __all__ = [
 
 
 def _check(lam: Any, z0: Any, r: Any, t: Any) -> tuple[float, int, int, int]:
-    lam = as_probability("lam", lam)
-    z0 = as_int("z0", z0, minimum=1)
-    t = as_int("t", t, minimum=1)
-    r = as_int("r", r, minimum=0)
-    if r >= t:
-        raise ValueError(f"r must be smaller than t = {t}, got r = {r}")
-    return lam, z0, r, t
+    lam, z0 = as_probability("lam", lam), as_int("z0", z0, minimum=1)
+    att = PeriodicBlocking(r, t)
+    return lam, z0, att.r, att.t
 
 
 def num_states(z0: Any, r: Any, t: Any) -> int:
@@ -141,37 +137,66 @@ def balance_residual(lam: Any, z0: Any, r: Any, t: Any, pi: Any) -> float:
     return _fakeack.balance_residual(lam, z0, r, t, arr)
 
 
-def j_attack(s: Any, lam: Any, z0: Any, r: Any, t: Any, mu: Any = 1.0) -> float:
-    r"""Cost :math:`J(\tilde\theta_{\mathrm{on}})` under the fake-ACK attack (Sec. IV-B, eq. (14)).
+def j_attack(
+    system: Any,
+    lam: Any,
+    z0: Any,
+    r: Any = None,
+    t: Any = None,
+    mu: Any = 1.0,
+    *,
+    attack: Any = None,
+) -> float:
+    r"""Cost :math:`J(\tilde\theta_{\mathrm{on}})` under a fake-ACK attack (Sec. IV-B, eq. (14)).
 
     :math:`J = \sum_{\mathcal S}\Pi^\star(\tau,\sigma)\,\mathrm{Tr}\,h^\tau(\bar P)`, summed per
-    segment of the structured law against the weighted traces
-    :math:`a^\tau\mathrm{Tr}\,h^\tau(\bar P)` in :math:`O(r z_0)`: chains of :math:`10^7` states
-    and more cost microseconds, and long blocked runs never overflow where the weighted terms are
-    finite.
+    segment of the stationary law against the weighted traces
+    :math:`a^\tau\mathrm{Tr}\,h^\tau(\bar P)`: :math:`O(r z_0)` for the paper's attack, so
+    chains of :math:`10^7` states and more cost microseconds, and long blocked runs never overflow
+    where the weighted terms are finite. Any blocking mask and any :math:`\mu` use the renewal
+    form (README, Model notes), checked against the full chain (:func:`general_attack_chain`).
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
         The process and sensor.
-    lam, z0, r, t
-        As in :func:`attack_chain` (``r = 0`` is the unattacked online schedule).
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    r, t : int, optional
+        Block the first ``r`` of every ``t`` flag-ACKs (``r = 0`` is the unattacked online
+        schedule); the same as ``attack=fakeack.PeriodicBlocking(r, t)``.
     mu : float, optional
         Memory mix :math:`\mu \in [0, 1]` as in :func:`fakeack.j_online`. For ``mu < 1`` the chain
         also needs the zeros in the memory since its last reset (the paper says its results cover
-        this case but never writes it down); the cost then comes from the renewal form of
-        :func:`fakeack.j_attack_pattern`, checked against that full chain
-        (:func:`general_attack_chain`) in the tests. Costs :math:`O(r^2)` for ``mu < 1``.
+        this case but never writes it down). Costs :math:`O(r^2)` for ``mu < 1``.
+    attack : PeriodicBlocking or MaskBlocking, optional
+        The attack, instead of ``r, t`` (an attack object may also be passed in r's place). A
+        mask that blocks every flag-ACK is refused: its cost is :func:`fakeack.j_max`.
 
     Returns
     -------
     float
         The attacked cost; ``inf`` only if a weighted trace overflows.
+
+    Examples
+    --------
+    >>> import fakeack as fa
+    >>> s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+    >>> round(fa.j_attack(s, 0.5, 2, attack=fa.PeriodicBlocking(1, 5)), 6)
+    1.819651
+    >>> fa.j_attack(s, 0.5, 2, 1, 5) == fa.j_attack(s, 0.5, 2, fa.MaskBlocking([1, 0, 0, 0, 0]))
+    True
     """
-    core = _core(s)
-    lam, z0, r, t = _check(lam, z0, r, t)
+    core = _core(system)
+    att = attack_argument(r, t, attack)
+    lam = as_probability("lam", lam)
+    z0 = as_int("z0", z0, minimum=1)
     mu = as_probability("mu", mu, closed=True)
-    return core.j_attack(lam, z0, r, t, mu)
+    if isinstance(att, MaskBlocking) and all(att.mask):
+        raise ValueError("mask blocks every flag-ACK; its cost is fakeack.j_max(system, lam)")
+    return core.j_attack(lam, z0, mu, core_attack(att))
 
 
 def general_attack_chain(
@@ -190,10 +215,10 @@ def general_attack_chain(
         Arrival probability at low power.
     z0 : int
         Memory length.
-    mask : sequence of 0/1
-        ``mask[sigma] == 1`` blocks the flag-ACK counted sigma in each period of ``len(mask)``.
-        ``[1]*r + [0]*(t-r)`` is the paper's attack. A mask of all ones is refused (the chain is
-        infinite; its cost is :func:`fakeack.j_max`).
+    mask : sequence of 0/1, PeriodicBlocking or MaskBlocking
+        The attack: ``mask[sigma] == 1`` blocks the flag-ACK counted sigma in each period of
+        ``len(mask)`` (``[1]*r + [0]*(t-r)`` is the paper's attack), or an attack object. A mask
+        of all ones is refused (the chain is infinite; its cost is :func:`fakeack.j_max`).
     mu : float, optional
         Probability of the z0-bit memory at each step.
 
@@ -207,8 +232,8 @@ def general_attack_chain(
     lam = as_probability("lam", lam)
     z0 = as_int("z0", z0, minimum=1)
     mu = as_probability("mu", mu, closed=True)
-    m = as_mask(mask)
-    states, indptr, indices, data = _fakeack.general_chain(lam, z0, mu, m)
+    att = mask if isinstance(mask, (PeriodicBlocking, MaskBlocking)) else MaskBlocking(mask)
+    states, indptr, indices, data = _fakeack.general_attack_chain(lam, z0, mu, core_attack(att))
     n = states.shape[0]
     return states, sp.csr_array((data, indices, indptr), shape=(n, n))
 

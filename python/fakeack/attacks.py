@@ -11,10 +11,11 @@ import math
 import re
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any, Union
+from typing import Any
 
 import numpy as np
 
+from . import _fakeack
 from ._validate import as_int
 
 __all__ = ["Attack", "MAX_MASK", "MaskBlocking", "PeriodicBlocking", "as_attack", "as_mask"]
@@ -67,7 +68,8 @@ class PeriodicBlocking:
     t: int
 
     def __init__(self, r: Any, t: Any):
-        t = as_int("t", t, minimum=1, maximum=MAX_MASK)
+        # No cap on t: the analysis of this attack costs O(r z0) whatever t is.
+        t = as_int("t", t, minimum=1)
         r = as_int("r", r, minimum=0)
         if r >= t:
             raise ValueError(f"r must be smaller than t = {t}, got r = {r}")
@@ -141,7 +143,7 @@ class MaskBlocking:
 
 
 #: Every attack type (for annotations).
-Attack = Union[PeriodicBlocking, MaskBlocking]
+Attack = PeriodicBlocking | MaskBlocking
 
 _RT = re.compile(r"^\s*(\d+)\s*/\s*(\d+)\s*$")
 
@@ -214,3 +216,30 @@ def as_attack(value: Any, name: str = "attack") -> PeriodicBlocking | MaskBlocki
     else:
         f = Fraction(value)
     return _periodic(f.numerator, f.denominator, value, name)
+
+
+def core_attack(attack: PeriodicBlocking | MaskBlocking | None) -> Any:
+    """The compiled core's form of a validated attack object (``None`` stays ``None``)."""
+    if attack is None:
+        return None
+    if isinstance(attack, PeriodicBlocking):
+        return _fakeack.Attack.periodic(attack.r, attack.t)
+    return _fakeack.Attack.mask(list(attack.mask))
+
+
+def attack_argument(
+    r: Any, t: Any, attack: Any
+) -> PeriodicBlocking | MaskBlocking:
+    """The attack of a call that takes either ``r, t`` or ``attack=`` (or an attack object as r)."""
+    if attack is None and t is None and r is not None and not isinstance(r, (int, np.integer)):
+        attack, r = r, None
+    if attack is not None:
+        if r is not None or t is not None:
+            raise TypeError("give either r and t, or attack, not both")
+        got = as_attack(attack)
+        if got is None:
+            raise TypeError("attack must not be None here")
+        return got
+    if r is None or t is None:
+        raise TypeError("missing the attack: give r and t, or attack=fakeack.PeriodicBlocking(r, t)")
+    return PeriodicBlocking(r, t)

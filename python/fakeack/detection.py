@@ -9,10 +9,12 @@ from typing import Any
 import numpy as np
 from scipy.special import ndtr, ndtri
 
+from . import _fakeack
 from ._validate import as_int, as_probability
-from .montecarlo import AttackPattern, OnlineSchedule, _attack_mask, simulate
+from .attacks import as_attack, core_attack
+from .montecarlo import OnlineSchedule, simulate
 from .schedules import _check_online as _online
-from .system import LinearSystem, _core
+from .system import LinearSystem
 
 __all__ = [
     "Detection",
@@ -22,6 +24,7 @@ __all__ = [
     "detection_rates",
     "estimate_beta",
     "flag_interval_moments",
+    "flag_rates",
 ]
 
 # The flag process does not depend on the plant: any valid system serves for rates.
@@ -78,8 +81,12 @@ def flag_interval_moments(lam: Any, z0: Any, mu: Any = 1.0) -> tuple[float, floa
     return 1.0 + mean_t, max(second - mean_t**2, 0.0)
 
 
-def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
-    r"""Long-run flag-ACKs delivered to the sensor per step under an attack pattern (exact).
+def flag_rates(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> tuple[float, float]:
+    r"""Long-run flag-ACKs per step, (sent by the detector, delivered to the sensor), exact.
+
+    Each level of the attacker's counter is left at the same rate :math:`F = u/D` (the renewal
+    form of :func:`fakeack.j_attack`, with D its normaliser), so a period of t flags sends
+    :math:`tF` and delivers :math:`(t - \text{blocked})F`. They do not depend on the plant.
 
     Parameters
     ----------
@@ -87,26 +94,49 @@ def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) ->
         Arrival probability :math:`\lambda \in (0, 1)` at low power.
     z0 : int
         Memory length of the event detector.
-    attack : None, (r, t) or AttackPattern
+    attack : None, PeriodicBlocking, MaskBlocking or (r, t), optional
+        ``None`` gives the online high-power rate twice.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+
+    Returns
+    -------
+    (sent, delivered) : tuple of float
+        ``(rate, 0.0)`` with the all-blocked rate :math:`\lambda u/(1-u)` when every flag-ACK is
+        blocked.
+
+    Examples
+    --------
+    >>> sent, delivered = flag_rates(0.5, 2)
+    >>> round(sent, 12) == round(delivered, 12) == round(1 / 7, 12)
+    True
+    """
+    lam, z0, mu = _online(lam, z0, mu)
+    return _fakeack.flag_rates(lam, z0, mu, core_attack(as_attack(attack)))
+
+
+def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
+    r"""Long-run flag-ACKs delivered to the sensor per step under an attack (exact).
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    attack : None, PeriodicBlocking, MaskBlocking or (r, t)
         ``None`` gives the online high-power rate.
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
     """
-    lam, z0, mu = _online(lam, z0, mu)
-    mask = _attack_mask(attack) or [False]
-    if all(mask):
-        return 0.0
-    return _core(_any_system()).flag_rates(lam, z0, mu, mask)[1]
+    return flag_rates(lam, z0, attack, mu)[1]
 
 
 def _regime_rates(lam: float, z0: int, mu: float) -> tuple[float, float]:
     """(f_on, f_blk): flags per step unattacked and with every flag blocked."""
-    ln_a = math.log1p(-lam)
-    az0 = math.exp(z0 * ln_a)
-    u = az0 * (mu + (1.0 - mu) * (1.0 - lam))
-    one_minus_u = -math.expm1(z0 * ln_a) + az0 * (1.0 - mu) * lam  # no cancellation for tiny lam
-    f_on = _core(_any_system()).flag_rates(lam, z0, mu, [False])[0]
-    return f_on, lam * u / one_minus_u
+    f_on = _fakeack.flag_rates(lam, z0, mu, None)[0]
+    f_blk = _fakeack.flag_rates(lam, z0, mu, _fakeack.Attack.mask([True]))[0]
+    return f_on, f_blk
 
 
 def estimate_beta(delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
@@ -234,7 +264,7 @@ def detection_rates(
         Arrival probability at low power.
     z0 : int
         Memory length of the event detector.
-    attack : (r, t) or AttackPattern
+    attack : PeriodicBlocking, MaskBlocking or (r, t)
         The attack to detect.
     n_steps : int, optional
         Observation window in steps (default 1000).
@@ -248,8 +278,8 @@ def detection_rates(
         Seed of the attack-free windows (the attacked ones use seed + 1).
     """
     lam, z0, mu = _online(lam, z0, mu)
-    mask = _attack_mask(attack)
-    if mask is None:
+    att = as_attack(attack)
+    if att is None:
         raise ValueError("attack: give the attack whose detection rate you want, e.g. (1, 5)")
     n = as_int("n_steps", n_steps, minimum=1)
     runs = as_int("runs", runs, minimum=2)
@@ -257,14 +287,14 @@ def detection_rates(
     seed = as_int("seed", seed, minimum=0, maximum=2**63)
     sched = OnlineSchedule(z0, mu)
     counts = {}
-    for name, att, sd in (("clean", None, seed), ("attacked", AttackPattern(mask), seed + 1)):
-        res = simulate(_any_system(), lam, sched, n, runs, seed=sd, attack=att, record_runs=True)
+    for name, a, sd in (("clean", None, seed), ("attacked", att, seed + 1)):
+        res = simulate(_any_system(), lam, sched, n, runs, seed=sd, attack=a, record_runs=True)
         counts[name] = res.delivered_per_run
     m, v = flag_interval_moments(lam, z0, mu)
     expected, sd_n = n / m, math.sqrt(n * v / m**3)
     z_crit = float(ndtri(alpha))
     flagged = {k: float(np.mean((c - expected) / sd_n < z_crit)) for k, c in counts.items()}
     betas = np.array([estimate_beta(int(c), n, lam, z0, mu) for c in counts["attacked"]])
-    beta = sum(mask) / len(mask)
+    beta = float(att.beta)
     return DetectionRates(flagged["clean"], flagged["attacked"], float(betas.mean()),
                           float(betas.std(ddof=1)), beta, runs, n, alpha)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import Any
@@ -12,7 +13,7 @@ import numpy as np
 
 from . import _fakeack
 from ._validate import as_int, as_probability, as_ratio
-from .attacks import MAX_MASK, as_mask
+from .attacks import MaskBlocking, PeriodicBlocking, as_attack, core_attack
 from .schedules import design_online, offline_schedule
 from .system import _core
 
@@ -77,60 +78,45 @@ class OnlineSchedule:
         return f"online z0={self.z0}" + ("" if self.mu == 1.0 else f", mu={self.mu:.6g}")
 
 
-@dataclass(frozen=True)
 class AttackPattern:
-    """A periodic blocking mask over the attacker's flag counter (1 = block that flag-ACK).
+    """Deprecated spelling of an attack: use :class:`fakeack.MaskBlocking` or
+    :class:`fakeack.PeriodicBlocking`.
 
-    ``AttackPattern.first(r, t)`` is the paper's Algorithm 1 (ERRATA item 3: blocks r of t).
+    ``AttackPattern(mask)`` returns ``MaskBlocking(mask)`` and ``AttackPattern.first(r, t)``
+    returns ``PeriodicBlocking(r, t)``, with a ``DeprecationWarning``.
     """
 
-    mask: tuple[bool, ...]
+    def __new__(cls, mask: Any) -> MaskBlocking:  # type: ignore[misc]
+        warnings.warn(
+            "fakeack.AttackPattern is deprecated; use fakeack.MaskBlocking(mask)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return MaskBlocking(mask)
 
-    def __init__(self, mask: Any):
-        object.__setattr__(self, "mask", tuple(as_mask(mask)))
-
-    @classmethod
-    def first(cls, r: Any, t: Any) -> AttackPattern:
-        """Block the first r of every t flag-ACKs (Algorithm 1)."""
-        t = as_int("t", t, minimum=1, maximum=MAX_MASK)
-        r = as_int("r", r, minimum=0)
-        if r >= t:
-            raise ValueError(f"r must be smaller than t = {t}, got r = {r}")
-        return cls([1] * r + [0] * (t - r))
-
-    @property
-    def beta(self) -> Fraction:
-        """Fraction of flag-ACKs blocked."""
-        return Fraction(sum(self.mask), len(self.mask))
-
-    def __str__(self) -> str:
-        return "attack " + "".join("1" if b else "0" for b in self.mask)
+    @staticmethod
+    def first(r: Any, t: Any) -> PeriodicBlocking:
+        """Block the first r of every t flag-ACKs: ``fakeack.PeriodicBlocking(r, t)``."""
+        warnings.warn(
+            "fakeack.AttackPattern.first is deprecated; use fakeack.PeriodicBlocking(r, t)",
+            DeprecationWarning,
+            stacklevel=2,
+        )
+        return PeriodicBlocking(r, t)
 
 
-def _attack_mask(attack: Any) -> list[bool] | None:
-    if attack is None:
-        return None
-    if isinstance(attack, AttackPattern):
-        return list(attack.mask)
-    if isinstance(attack, tuple) and len(attack) == 2:
-        return list(AttackPattern.first(*attack).mask)
-    raise TypeError(
-        f"attack must be None, an (r, t) tuple or a fakeack.AttackPattern, got {type(attack).__name__}"
-    )
-
-
-def _schedule_and_mask(
+def _schedule_and_attack(
     sched: Any, attack: Any
-) -> tuple[OfflineSchedule | OnlineSchedule, list[bool] | None]:
-    """Validated schedule and blocking mask (None: no attacker); offline schedules take none."""
+) -> tuple[OfflineSchedule | OnlineSchedule, PeriodicBlocking | MaskBlocking | None]:
+    """Validated schedule and attack (None: no attacker); offline schedules take none."""
     if not isinstance(sched, (OfflineSchedule, OnlineSchedule)):
         raise TypeError(
             f"sched must be a fakeack.OfflineSchedule or fakeack.OnlineSchedule, got {type(sched).__name__}"
         )
-    mask = _attack_mask(attack)
-    if isinstance(sched, OfflineSchedule) and mask is not None:
+    att = as_attack(attack)
+    if isinstance(sched, OfflineSchedule) and att is not None:
         raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
-    return sched, mask
+    return sched, att
 
 
 @dataclass(frozen=True)
@@ -173,8 +159,8 @@ def expected_trace_curve(
     sched : OfflineSchedule or OnlineSchedule
     horizon : int, optional
         Number of steps (default 200).
-    attack : None, (r, t) or AttackPattern, optional
-        Blocking pattern; online schedules only (an offline schedule ignores ACKs).
+    attack : None, PeriodicBlocking, MaskBlocking or (r, t), optional
+        The attack; online schedules only (an offline schedule ignores ACKs).
 
     Returns
     -------
@@ -182,14 +168,15 @@ def expected_trace_curve(
     """
     core = _core(system)
     lam = as_probability("lam", lam)
-    sched, mask = _schedule_and_mask(sched, attack)
+    sched, att = _schedule_and_attack(sched, attack)
     horizon = as_int("horizon", horizon, minimum=1)
     if isinstance(sched, OfflineSchedule):
-        trace = core.curve_offline(lam, sched.pattern.astype(np.uint8).tolist(), horizon)
+        r = sched.ratio
+        trace = core.curve_offline(lam, r.numerator, r.denominator, horizon)
     else:
-        if mask is not None and all(mask):
+        if isinstance(att, MaskBlocking) and all(att.mask):
             raise ValueError("attack blocks every flag-ACK: the state space is unbounded")
-        trace = core.curve_online(lam, sched.z0, sched.mu, mask or [False], horizon)
+        trace = core.curve_online(lam, sched.z0, sched.mu, core_attack(att), horizon)
     k = np.arange(1, horizon + 1)
     return TraceCurve(k, trace, np.cumsum(trace) / k)
 
@@ -288,7 +275,7 @@ def simulate(
         Independent runs (default 100000, as in the paper). Memory does not grow with runs.
     seed : int, optional
         Results depend only on the seed, not on the number of threads.
-    attack : None, (r, t) or AttackPattern, optional
+    attack : None, PeriodicBlocking, MaskBlocking or (r, t), optional
         Fake-ACK attack (online schedules only).
     mode : {"covariance", "state"}
         ``"covariance"`` tracks the holding time and averages :math:`\mathrm{Tr}\,P_k`;
@@ -323,7 +310,7 @@ def simulate(
     """
     core = _core(system)
     lam = as_probability("lam", lam)
-    sched, mask = _schedule_and_mask(sched, attack)
+    sched, att = _schedule_and_attack(sched, attack)
     horizon = as_int("horizon", horizon, minimum=1)
     runs = as_int("runs", runs, minimum=1)
     seed = as_int("seed", seed, minimum=0)
@@ -334,14 +321,14 @@ def simulate(
     if protocol not in ("A", "B"):
         raise ValueError(f"protocol must be 'A' or 'B', got {protocol!r}")
     if isinstance(sched, OfflineSchedule):
-        kind, pattern, z0, mu = "offline", sched.pattern.astype(np.uint8).tolist(), 1, 1.0
+        kind, p, q, z0, mu = "offline", sched.ratio.numerator, sched.ratio.denominator, 1, 1.0
     else:
-        kind, pattern, z0, mu = "online", [], sched.z0, sched.mu
+        kind, p, q, z0, mu = "online", 1, 2, sched.z0, sched.mu
     bar = _Progress(runs, progress)
     try:
         out = _fakeack.simulate(
-            core, lam, kind, pattern, z0, mu, mask, mode, protocol, horizon, runs, seed, bar,
-            bool(record_runs),
+            core, lam, kind, p, q, z0, mu, core_attack(att), mode, protocol, horizon, runs, seed,
+            bar, bool(record_runs),
         )
     finally:
         bar.close()
@@ -359,6 +346,6 @@ def simulate(
         mode=mode,
         protocol=protocol,
         schedule=str(sched),
-        attack="none" if mask is None else str(AttackPattern(mask)),
+        attack="none" if att is None else str(att),
         delivered_per_run=out["delivered_per_run"] if record_runs else None,
     )

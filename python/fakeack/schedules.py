@@ -89,7 +89,7 @@ def offline_schedule(ratio: Any) -> np.ndarray:
     return _fakeack.offline_schedule(r.numerator, r.denominator)
 
 
-def j_offline(s: Any, lam: Any, ratio: Any) -> float:
+def j_offline(system: Any, lam: Any, ratio: Any) -> float:
     r"""Cost J of the optimal offline schedule (Proposition 3.1, with m and n as corrected).
 
     .. math::
@@ -100,7 +100,7 @@ def j_offline(s: Any, lam: Any, ratio: Any) -> float:
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
         The process and sensor.
     lam : float
         Arrival probability :math:`\lambda \in (0, 1)` at low power.
@@ -113,7 +113,7 @@ def j_offline(s: Any, lam: Any, ratio: Any) -> float:
         :math:`\lim \frac1T\sum_{k\le T}\mathrm{Tr}\,\mathbb E[P_k]` under
         :func:`offline_schedule`.
     """
-    core = _core(s)
+    core = _core(system)
     lam = as_probability("lam", lam)
     r = as_ratio("ratio", ratio)
     return core.j_offline(lam, r.numerator, r.denominator)
@@ -127,7 +127,7 @@ def _check_online(lam: Any, z0: Any, mu: Any) -> tuple[float, int, float]:
     )
 
 
-def j_online(s: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
+def j_online(system: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
     r"""Cost J of the ACK-based online schedule :math:`\theta_{\mathrm{on}}` (Theorem 4.5 of [1]_).
 
     Corrected as in ERRATA item 2, with :math:`a = 1-\lambda`:
@@ -138,7 +138,7 @@ def j_online(s: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
         The process and sensor.
     lam : float
         Arrival probability :math:`\lambda \in (0, 1)` at low power.
@@ -153,7 +153,7 @@ def j_online(s: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
     .. [1] D. Han, P. Cheng, J. Chen, L. Shi, "An online sensor power schedule for remote state
        estimation with communication energy constraint", IEEE TAC, 2014.
     """
-    core = _core(s)
+    core = _core(system)
     lam, z0, mu = _check_online(lam, z0, mu)
     return core.j_online(lam, z0, mu)
 
@@ -178,7 +178,7 @@ def online_high_power_rate(lam: Any, z0: Any, mu: Any = 1.0) -> float:
     0.142857142857
     """
     lam, z0, mu = _check_online(lam, z0, mu)
-    return _fakeack.online_high_power_rate(lam, z0, mu)
+    return _fakeack.high_power_rate(lam, z0, mu)
 
 
 class OnlineDesign(NamedTuple):
@@ -286,11 +286,18 @@ def _largest_z_float(lam: float, rho: float) -> int:
     return lo
 
 
-def j_max(s: Any, lam: Any) -> float:
+def j_max(system: Any, lam: Any) -> float:
     r"""Cost with every flag-ACK blocked (Sec. IV-C): :math:`\sum_{i\ge0}\lambda a^i\,\mathrm{tr}_i`.
 
     Computed as :math:`\mathrm{Tr}\,X` with :math:`X = aAXA' + \lambda\bar P + aQ` (a Stein
     equation solved by doubling), not by truncating the series.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The process and sensor.
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
 
     Returns
     -------
@@ -298,6 +305,6 @@ def j_max(s: Any, lam: Any) -> float:
         ``math.inf`` when :math:`(1-\lambda)\rho(A)^2 \ge 1` (ERRATA item 5: the printed condition
         :math:`(1-\lambda)\rho(A) < 1` is wrong).
     """
-    core = _core(s)
+    core = _core(system)
     lam = as_probability("lam", lam)
     return core.j_max(lam)

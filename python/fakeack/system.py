@@ -57,7 +57,16 @@ class LinearSystem:
 
     __slots__ = ("_A", "_C", "_Q", "_R", "_core")
 
-    def __init__(self, A: Any, C: Any, Q: Any, R: Any, *, tol: float = 1e-14, max_iter: int = 200):
+    def __init__(
+        self,
+        A: Any,
+        C: Any,
+        Q: Any,
+        R: Any,
+        *,
+        tol: float = _fakeack.DEFAULT_TOL,
+        max_iter: int = _fakeack.DEFAULT_MAX_ITER,
+    ):
         a = as_matrix("A", A)
         n = a.shape[0]
         if a.shape != (n, n):
@@ -129,7 +138,7 @@ class LinearSystem:
     @property
     def spectral_radius(self) -> float:
         r""":math:`\rho(A)`, the largest eigenvalue modulus of A."""
-        return self._core.rho
+        return self._core.spectral_radius
 
     def h_traces(self, n: int) -> np.ndarray:
         r"""Traces :math:`[\mathrm{Tr}\,h^0(\bar P), \ldots, \mathrm{Tr}\,h^n(\bar P)]`.
@@ -178,8 +187,8 @@ class LinearSystem:
         return (self._A, self._C, self._Q, self._R)
 
 
-def _core(s: Any) -> Any:
+def _core(system: Any) -> Any:
     """The compiled system behind a :class:`LinearSystem` (TypeError otherwise)."""
-    if not isinstance(s, LinearSystem):
-        raise TypeError(f"s must be a fakeack.LinearSystem, got {type(s).__name__}")
-    return s._core
+    if not isinstance(system, LinearSystem):
+        raise TypeError(f"system must be a fakeack.LinearSystem, got {type(system).__name__}")
+    return system._core

@@ -9,8 +9,9 @@ from typing import Any
 import numpy as np
 
 from ._validate import as_fraction, as_int, as_probability, as_ratio
-from .attack import as_mask
-from .schedules import design_online, j_offline, j_online
+from .attack import j_attack
+from .attacks import MaskBlocking
+from .schedules import design_online
 from .system import _core
 
 __all__ = [
@@ -31,7 +32,7 @@ def _t_max(t_max: Any) -> int:
     return as_int("t_max", t_max, minimum=2)
 
 
-def j_attack_pattern(s: Any, lam: Any, z0: Any, mask: Any, mu: Any = 1.0) -> float:
+def j_attack_pattern(system: Any, lam: Any, z0: Any, mask: Any, mu: Any = 1.0) -> float:
     r"""Cost under any periodic blocking pattern of the attacker's flag counter.
 
     Generalises Algorithm 1: ``mask[sigma] == 1`` blocks the flag-ACK counted ``sigma`` in each
@@ -47,7 +48,8 @@ def j_attack_pattern(s: Any, lam: Any, z0: Any, mask: Any, mu: Any = 1.0) -> flo
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
+        The process and sensor.
     lam : float
         Arrival probability :math:`\lambda \in (0, 1)` at low power.
     z0 : int
@@ -57,17 +59,10 @@ def j_attack_pattern(s: Any, lam: Any, z0: Any, mask: Any, mu: Any = 1.0) -> flo
     mu : float, optional
         Probability of the z0-bit memory at each step.
     """
-    core = _core(s)
-    lam = as_probability("lam", lam)
-    z0 = as_int("z0", z0, minimum=1)
-    mu = as_probability("mu", mu, closed=True)
-    m = as_mask(mask)
-    if all(m):
-        raise ValueError("mask blocks every flag-ACK; its cost is fakeack.j_max(s, lam)")
-    return core.j_attack_pattern(lam, z0, mu, m)
+    return j_attack(system, lam, z0, mu=mu, attack=MaskBlocking(mask))
 
 
-def j_attack_limit(s: Any, lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> float:
+def j_attack_limit(system: Any, lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> float:
     r"""Cost in the large-period limit :math:`r, t \to \infty`, :math:`r/t \to \beta`.
 
     The attacker blocks long runs of flags; the process alternates between the all-blocked regime
@@ -84,7 +79,8 @@ def j_attack_limit(s: Any, lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> float
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
+        The process and sensor.
     lam : float
         Arrival probability at low power.
     z0 : int
@@ -99,7 +95,7 @@ def j_attack_limit(s: Any, lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> float
     float
         ``inf`` for :math:`\beta > 0` when :math:`J_{\max}` is infinite.
     """
-    core = _core(s)
+    core = _core(system)
     lam = as_probability("lam", lam)
     z0 = as_int("z0", z0, minimum=1)
     mu = as_probability("mu", mu, closed=True)
@@ -132,14 +128,33 @@ class BetaSweep:
         return len(self.r)
 
 
-def _design(s: Any, lam: Any, ratio: Any) -> tuple[float, Fraction, int, float, float, float]:
+@dataclass(frozen=True)
+class _Problem:
+    """A validated (lam, ratio) with the online design to analyse."""
+
+    lam: float
+    ratio: Fraction
+    z0: int
+    mu: float
+
+
+def _problem(lam: Any, ratio: Any, z0: Any, mu: Any) -> _Problem:
+    """lam and ratio, with the online design given (z0, optional mu) or by design_online."""
     lam_f = as_probability("lam", lam)
     r = as_ratio("ratio", ratio)
-    z0, mu = design_online(lam, r)
-    return lam_f, r, z0, mu, j_offline(s, lam_f, r), j_online(s, lam_f, z0, mu)
+    if z0 is None:
+        if mu is not None:
+            raise TypeError("mu: give z0 with mu (or neither, for fakeack.design_online's design)")
+        z, m = design_online(lam, r)
+    else:
+        z = as_int("z0", z0, minimum=1)
+        m = 1.0 if mu is None else as_probability("mu", mu, closed=True)
+    return _Problem(lam_f, r, z, m)
 
 
-def beta_sweep(s: Any, lam: Any, ratio: Any, t_max: Any = 1000) -> BetaSweep:
+def beta_sweep(
+    system: Any, lam: Any, ratio: Any, t_max: Any = 1000, *, z0: Any = None, mu: Any = None
+) -> BetaSweep:
     r"""The attacked cost at every :math:`\beta = r/t` in lowest terms, :math:`1 \le r < t \le t_{\max}`.
 
     The online schedule is :func:`fakeack.design_online` ``(lam, ratio)``. Each attack period is a
@@ -149,23 +164,31 @@ def beta_sweep(s: Any, lam: Any, ratio: Any, t_max: Any = 1000) -> BetaSweep:
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
+        The process and sensor.
     lam : float
         Arrival probability at low power.
     ratio : Fraction
         Energy ratio p/q (from :func:`fakeack.energy_ratio`).
     t_max : int, optional
         Largest period (default 1000).
+    z0 : int, optional
+        Memory length of the online schedule to analyse; by default
+        :func:`fakeack.design_online` ``(lam, ratio)``, the schedule that spends the budget exactly.
+    mu : float, optional
+        Its memory mix; 1 when ``z0`` is given without it.
 
     Returns
     -------
     BetaSweep
     """
-    core = _core(s)
-    lam_f, r, z0, mu, joff, jon = _design(s, lam, ratio)
+    core = _core(system)
+    pb = _problem(lam, ratio, z0, mu)
     t_max = _t_max(t_max)
-    rr, tt, beta, j = core.beta_sweep(lam_f, z0, mu, t_max)
-    return BetaSweep(rr, tt, beta, j, joff, jon, z0, mu, lam_f, r)
+    rr, tt, beta, j = core.beta_sweep(pb.lam, pb.z0, pb.mu, t_max)
+    joff = core.j_offline(pb.lam, pb.ratio.numerator, pb.ratio.denominator)
+    jon = core.j_online(pb.lam, pb.z0, pb.mu)
+    return BetaSweep(rr, tt, beta, j, joff, jon, pb.z0, pb.mu, pb.lam, pb.ratio)
 
 
 @dataclass(frozen=True)
@@ -184,7 +207,9 @@ class BetaBar:
     mu: float
 
 
-def beta_bar(s: Any, lam: Any, ratio: Any, t_max: Any = 60) -> BetaBar:
+def beta_bar(
+    system: Any, lam: Any, ratio: Any, t_max: Any = 60, *, z0: Any = None, mu: Any = None
+) -> BetaBar:
     r"""The threshold :math:`\bar\beta` above which the sensor should drop ACKs (Sec. IV-C).
 
     The paper defines :math:`\bar\beta` by
@@ -202,20 +227,28 @@ def beta_bar(s: Any, lam: Any, ratio: Any, t_max: Any = 60) -> BetaBar:
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
+        The process and sensor.
     lam : float
         Arrival probability at low power.
     ratio : Fraction
-        Energy ratio p/q; the online schedule is :func:`fakeack.design_online` ``(lam, ratio)``.
+        Energy ratio p/q.
     t_max : int, optional
         Largest attack period for ``finite`` (default 60).
+    z0 : int, optional
+        Memory length of the online schedule to analyse; by default
+        :func:`fakeack.design_online` ``(lam, ratio)``, the schedule that spends the budget exactly.
+    mu : float, optional
+        Its memory mix; 1 when ``z0`` is given without it.
     """
-    core = _core(s)
-    lam_f, r, z0, mu, joff, jon = _design(s, lam, ratio)
+    core = _core(system)
+    pb = _problem(lam, ratio, z0, mu)
     t_max = _t_max(t_max)
-    first, limit, jmax = core.beta_bar(lam_f, z0, mu, t_max, joff)
+    first, limit, joff, jon, jmax = core.beta_bar(
+        pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.z0, pb.mu, t_max
+    )
     finite = None if first is None else Fraction(first[0], first[1])
-    return BetaBar(finite, limit, t_max, joff, jon, jmax, z0, mu)
+    return BetaBar(finite, limit, t_max, joff, jon, jmax, pb.z0, pb.mu)
 
 
 @dataclass(frozen=True)
@@ -235,7 +268,9 @@ class Decision:
     mu: float
 
 
-def choose_schedule(s: Any, lam: Any, ratio: Any, beta: Any) -> Decision:
+def choose_schedule(
+    system: Any, lam: Any, ratio: Any, beta: Any, *, z0: Any = None, mu: Any = None
+) -> Decision:
     r"""Keep the online schedule or switch to the offline one (Sec. IV-C's rule).
 
     .. math::
@@ -248,18 +283,26 @@ def choose_schedule(s: Any, lam: Any, ratio: Any, beta: Any) -> Decision:
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
+        The process and sensor.
     lam : float
     ratio : Fraction
         Energy ratio p/q.
     beta : float or Fraction
         The attacker's (estimated) budget in [0, 1].
+    z0 : int, optional
+        Memory length of the online schedule to analyse; by default
+        :func:`fakeack.design_online` ``(lam, ratio)``, the schedule that spends the budget exactly.
+    mu : float, optional
+        Its memory mix; 1 when ``z0`` is given without it.
     """
-    lam_f, r, z0, mu, joff, jon = _design(s, lam, ratio)
+    core = _core(system)
+    pb = _problem(lam, ratio, z0, mu)
     b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
-    jatt = j_attack_limit(s, lam_f, z0, b, mu)
-    bb = _core(s).beta_bar(lam_f, z0, mu, 2, joff)[1]
-    return Decision("online" if jatt < joff else "offline", b, bb, jatt, joff, jon, z0, mu)
+    online, bb, jatt, joff, jon = core.choose_schedule(
+        pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.z0, pb.mu, b
+    )
+    return Decision("online" if online else "offline", b, bb, jatt, joff, jon, pb.z0, pb.mu)
 
 
 @dataclass(frozen=True)
@@ -274,7 +317,7 @@ class MaskSearch:
     consecutive_is_worst: bool
 
 
-def worst_mask(s: Any, lam: Any, z0: Any, t: Any, blocked: Any, mu: Any = 1.0) -> MaskSearch:
+def worst_mask(system: Any, lam: Any, z0: Any, t: Any, blocked: Any, mu: Any = 1.0) -> MaskSearch:
     """Exhaustive search for the most damaging mask with ``blocked`` of ``t`` flags blocked.
 
     Tests whether blocking consecutively, the paper's choice after the optimal-DoS result it cites,
@@ -282,7 +325,8 @@ def worst_mask(s: Any, lam: Any, z0: Any, t: Any, blocked: Any, mu: Any = 1.0) -
 
     Parameters
     ----------
-    s : LinearSystem
+    system : LinearSystem
+        The process and sensor.
     lam : float
         Arrival probability at low power.
     z0 : int
@@ -294,7 +338,7 @@ def worst_mask(s: Any, lam: Any, z0: Any, t: Any, blocked: Any, mu: Any = 1.0) -
     mu : float, optional
         Probability of the z0-bit memory at each step.
     """
-    core = _core(s)
+    core = _core(system)
     lam = as_probability("lam", lam)
     z0 = as_int("z0", z0, minimum=1)
     t = as_int("t", t, minimum=1)

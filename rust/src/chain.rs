@@ -1,9 +1,11 @@
 //! The fake-ACK attack chain S_k = (τ_k, σ_k) of Sec. IV-B, with transition rules 1)-4) and the
 //! state order of the paper: levels σ = 0..t-1, within a level τ = 0, 1, .... Level σ ≤ r holds
 //! τ = 0..z0(σ+1); level σ > r holds τ = 0..z0. A flag-ACK is due when τ > 0 and τ mod z0 = 0;
-//! the attacker blocks it while σ < r (ERRATA item 3: "<", not "≤").
+//! the attacker blocks it while σ < r (Model note 3: "<", not "≤").
 
-use crate::error::{check_attack, check_lam, Error, Result};
+use crate::attack::Attack;
+use crate::error::{Error, Result};
+use crate::online::{check_lam, one_minus_apow, OnlineDesign};
 
 /// Largest chain [`AttackChain::build_csr`] will materialise (about 0.5 GB as CSR).
 pub const MAX_BUILD_STATES: u128 = 20_000_000;
@@ -17,18 +19,44 @@ pub fn num_states(z0: u64, r: u64, t: u64) -> u128 {
 /// A row-stochastic sparse matrix in CSR form.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Csr {
+    /// Number of rows (= columns).
     pub n: usize,
+    /// Row pointers, `n + 1` entries: row i is `indptr[i]..indptr[i + 1]`.
     pub indptr: Vec<usize>,
+    /// Column of each stored entry.
     pub indices: Vec<usize>,
+    /// Value of each stored entry.
     pub data: Vec<f64>,
+}
+
+impl Csr {
+    /// Checks the CSR invariants: `indptr` starts at 0, never decreases and ends at the number
+    /// of entries; `indices` and `data` have that length; every column is below `n`.
+    pub fn validate(&self) -> Result<()> {
+        let ok = self.indptr.len() == self.n + 1
+            && self.indptr.first() == Some(&0)
+            && self.indptr.windows(2).all(|w| w[0] <= w[1])
+            && self.indptr.last() == Some(&self.indices.len())
+            && self.indices.len() == self.data.len()
+            && self.indices.iter().all(|&j| j < self.n);
+        if ok {
+            Ok(())
+        } else {
+            Err(Error::invalid("T", "malformed CSR arrays"))
+        }
+    }
 }
 
 /// The attack chain for memory length z0 (μ = 1) under "block the first r of every t flag-ACKs".
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct AttackChain {
+    /// Arrival probability λ at low power.
     pub lam: f64,
+    /// Memory length z0.
     pub z0: u64,
+    /// Blocked flag-ACKs per period.
     pub r: u64,
+    /// Period in flag-ACKs.
     pub t: u64,
 }
 
@@ -36,10 +64,31 @@ pub struct AttackChain {
 pub type Step = ((u64, u64), f64);
 
 impl AttackChain {
+    /// The chain for arrival probability `lam`, memory `z0` and "block the first r of every t".
     pub fn new(lam: f64, z0: u64, r: u64, t: u64) -> Result<Self> {
         check_lam(lam)?;
-        check_attack(z0, r, t)?;
+        OnlineDesign::fixed(z0)?;
+        Attack::periodic(r, t)?;
         Ok(AttackChain { lam, z0, r, t })
+    }
+
+    /// c̃(j) of [`crate::stationary`]'s docs: the relative rate at which level j's walk is
+    /// entered at τ = 0 (1 - u after a blocked flag, 1 otherwise).
+    pub fn c_tilde(&self, j: u64) -> f64 {
+        if j == 0 || j > self.r {
+            1.0
+        } else {
+            one_minus_apow(self.lam, self.z0)
+        }
+    }
+
+    /// Segment of τ: 0 for τ ≤ z0, else ⌈τ/z0⌉ - 1.
+    pub fn segment(&self, tau: u64) -> u64 {
+        if tau <= self.z0 {
+            0
+        } else {
+            (tau - 1) / self.z0
+        }
     }
 
     /// |S| = r(r+1)z0/2 + t(z0+1).
@@ -170,7 +219,7 @@ mod tests {
     }
 
     /// The paper's 11x11 example (z0 = 2, r = 1, t = 3), written out by hand from rules 1)-4) in
-    /// the paper's column-stochastic convention, with ERRATA item 4 applied (column 3's λ in row 4).
+    /// the paper's column-stochastic convention, with Model note 4 applied (column 3's λ in row 4).
     #[test]
     #[allow(clippy::needless_range_loop)]
     fn paper_example_matrix() {

@@ -5,36 +5,59 @@
 
 use std::collections::HashMap;
 
+use crate::attack::Attack;
 use crate::chain::Csr;
-use crate::error::{check_lam, check_mu, Error, Result};
+use crate::error::{Error, Result};
+use crate::online::{check_lam, OnlineDesign};
 
-/// Largest chain [`build`] explores (hashing makes it slower per state than the (τ, σ) chain).
+/// Largest chain [`general_attack_chain`] explores (hashing makes it slower per state than the (τ, σ) chain).
 pub const MAX_GENERAL_STATES: u128 = 5_000_000;
 
-/// A state (τ, z, σ).
-pub type GState = (u64, u64, u64);
+/// A state of the general chain.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct GeneralState {
+    /// Holding time since the last arrival.
+    pub tau: u64,
+    /// Zeros in the detector's memory since its last reset.
+    pub zeros: u64,
+    /// The attacker's flag-ACK counter.
+    pub sigma: u64,
+}
+
+const START: GeneralState = GeneralState {
+    tau: 0,
+    zeros: 0,
+    sigma: 0,
+};
 
 /// The chain of the protocol with memory z0 used with probability μ (z0 + 1 otherwise) and the
 /// attacker blocking flag number σ of each period iff `mask[σ]`. States are numbered in
 /// breadth-first order from the paper's initial state (0, 0, 0).
-pub fn build(lam: f64, z0: u64, mu: f64, mask: &[bool]) -> Result<(Vec<GState>, Csr)> {
+pub fn general_attack_chain(
+    lam: f64,
+    design: OnlineDesign,
+    attack: &Attack,
+) -> Result<(Vec<GeneralState>, Csr)> {
     check_lam(lam)?;
-    check_mu(mu)?;
-    if z0 < 1 {
-        return Err(Error::invalid("z0", "must be at least 1"));
-    }
-    if mask.is_empty() {
-        return Err(Error::invalid("mask", "must not be empty"));
-    }
-    if mask.iter().all(|&b| b) {
+    design.validate()?;
+    attack.validate()?;
+    if attack.blocks_every_flag() {
         return Err(Error::invalid(
             "mask",
             "blocks every flag-ACK: the chain is infinite (its cost is J_max)",
         ));
     }
+    let mask = attack.blocking_mask()?;
+    let OnlineDesign { z0, mu } = design;
     let a = 1.0 - lam;
     let t = mask.len() as u64;
-    let succ = |(tau, z, sigma): GState| -> Vec<(GState, f64)> {
+    let state = |tau, zeros, sigma| GeneralState { tau, zeros, sigma };
+    let succ = |GeneralState {
+                    tau,
+                    zeros: z,
+                    sigma,
+                }: GeneralState|
+     -> Vec<(GeneralState, f64)> {
         let flag = if z == z0 + 1 {
             1.0
         } else if z == z0 {
@@ -47,22 +70,22 @@ pub fn build(lam: f64, z0: u64, mu: f64, mask: &[bool]) -> Result<(Vec<GState>, 
             let next = (sigma + 1) % t;
             if mask[sigma as usize] {
                 // Blocked: memory reset, sensor stays on low power.
-                out.push(((0, 0, next), flag * lam));
-                out.push(((tau + 1, 1, next), flag * a));
+                out.push((state(0, 0, next), flag * lam));
+                out.push((state(tau + 1, 1, next), flag * a));
             } else {
                 // Delivered: high power next step, the packet arrives.
-                out.push(((0, 0, next), flag));
+                out.push((state(0, 0, next), flag));
             }
         }
         if flag < 1.0 {
-            out.push(((0, 0, sigma), (1.0 - flag) * lam));
-            out.push(((tau + 1, z + 1, sigma), (1.0 - flag) * a));
+            out.push((state(0, 0, sigma), (1.0 - flag) * lam));
+            out.push((state(tau + 1, z + 1, sigma), (1.0 - flag) * a));
         }
         out
     };
-    let mut index: HashMap<GState, usize> = HashMap::new();
-    let mut states = vec![(0, 0, 0)];
-    index.insert((0, 0, 0), 0);
+    let mut index: HashMap<GeneralState, usize> = HashMap::new();
+    let mut states = vec![START];
+    index.insert(START, 0);
     let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
     let mut i = 0;
     while i < states.len() {
@@ -116,7 +139,8 @@ pub fn build(lam: f64, z0: u64, mu: f64, mask: &[bool]) -> Result<(Vec<GState>, 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::pattern::{longest_cyclic_run, tau_needed, Segments};
+    use crate::attack::longest_cyclic_run;
+    use crate::pattern::{tau_needed, Segments};
     use crate::stationary::gth;
 
     fn tr(i: u64) -> f64 {
@@ -124,9 +148,11 @@ mod tests {
     }
 
     fn j_chain(lam: f64, z0: u64, mu: f64, mask: &[bool]) -> f64 {
-        let (states, csr) = build(lam, z0, mu, mask).unwrap();
+        let design = OnlineDesign::new(z0, mu).unwrap();
+        let attack = Attack::mask(mask.to_vec()).unwrap();
+        let (states, csr) = general_attack_chain(lam, design, &attack).unwrap();
         let pi = gth(&csr).unwrap();
-        states.iter().zip(&pi).map(|(s, p)| p * tr(s.0)).sum()
+        states.iter().zip(&pi).map(|(s, p)| p * tr(s.tau)).sum()
     }
 
     #[test]
@@ -146,7 +172,8 @@ mod tests {
                         let w: Vec<f64> = (0..=tau_needed(z0, kmax) as u64)
                             .map(|i| (1.0 - lam).powi(i as i32) * tr(i))
                             .collect();
-                        let seg = Segments::new(&w, lam, z0, mu, kmax).unwrap();
+                        let design = OnlineDesign::new(z0, mu).unwrap();
+                        let seg = Segments::new(&w, lam, design, kmax).unwrap();
                         let got = seg.j_mask(mask).unwrap();
                         let expect = j_chain(lam, z0, mu, mask);
                         assert!(
@@ -161,6 +188,8 @@ mod tests {
 
     #[test]
     fn all_blocked_refused() {
-        assert!(build(0.5, 2, 1.0, &[true, true]).is_err());
+        let all = Attack::mask(vec![true, true]).unwrap();
+        let design = OnlineDesign::fixed(2).unwrap();
+        assert!(general_attack_chain(0.5, design, &all).is_err());
     }
 }

@@ -8,11 +8,13 @@
 //! *weighted* traces, which stay finite where `tr_i` alone would overflow), `tau` the holding time
 //! since the last arrival and `sigma` the attacker's flag-ACK counter.
 
+pub mod analysis;
 pub mod attack;
 pub mod chain;
 pub mod error;
 pub mod general;
 pub mod montecarlo;
+pub mod online;
 pub mod pattern;
 #[cfg(test)]
 mod properties;
@@ -26,5 +28,11 @@ pub mod transient;
 #[cfg(feature = "python")]
 mod bindings;
 
+pub use analysis::{flag_rates, BetaBar, Decision, FlagRates, MaskSearch, Schedule};
 pub use attack::Attack;
 pub use error::{Error, Result};
+pub use montecarlo::{McConfig, McResult, McSchedule, Mode, Protocol};
+pub use online::{design_online, OnlineDesign};
+pub use riccati::LinearSystem;
+pub use schedules::Ratio;
+pub use sweep::Sweep;

@@ -14,9 +14,10 @@
 //! M_k, where W_k (M_k) sums a^τ Tr h^τ(P̄) (a^τ) over segment k. `stationary::structured` is
 //! the μ = 1, first-r-of-t case written out state by state.
 
-use crate::error::{check_lam, check_mu, Error, Result};
+use crate::attack::{longest_cyclic_run, Attack};
+use crate::error::{Error, Result};
+use crate::online::{apow, check_lam, OnlineDesign};
 use crate::riccati::LinearSystem;
-use crate::schedules::{apow, one_minus_u};
 
 /// Largest segment index for μ < 1, where building the segments costs O(kmax²).
 pub const MAX_SEGMENTS_MIXED: u64 = 20_000;
@@ -53,26 +54,22 @@ fn prefix(v: &[f64]) -> Vec<f64> {
 impl Segments {
     /// Segments 0..=kmax from the weighted traces `wtr[τ] = a^τ Tr h^τ(P̄)`,
     /// τ = 0..=[`tau_needed`].
-    pub fn new(wtr: &[f64], lam: f64, z0: u64, mu: f64, kmax: u64) -> Result<Self> {
+    pub fn new(wtr: &[f64], lam: f64, design: OnlineDesign, kmax: u64) -> Result<Self> {
         check_lam(lam)?;
-        check_mu(mu)?;
-        if z0 < 1 {
-            return Err(Error::invalid("z0", "must be at least 1"));
-        }
+        design.validate()?;
+        let OnlineDesign { z0, mu } = design;
         let need = tau_needed(z0, kmax) as usize + 1;
         if wtr.len() < need {
             return Err(Error::invalid("w", format!("needs {need} weighted traces")));
         }
-        let a = 1.0 - lam;
-        let u = apow(lam, z0) * (mu + (1.0 - mu) * a);
         let mass: Vec<f64> = (0..need).map(|tau| apow(lam, tau as u64)).collect();
         let (w, m) = (
             segment_sums(&wtr[..need], z0, mu, kmax),
             segment_sums(&mass, z0, mu, kmax),
         );
         Ok(Segments {
-            u,
-            one_minus_u: one_minus_u(lam, z0, mu),
+            u: design.flag_probability(lam),
+            one_minus_u: design.no_flag_probability(lam),
             w,
             m,
         })
@@ -80,27 +77,89 @@ impl Segments {
 
     /// Segments 0..=kmax for a system, computing the weighted traces it needs (refused before
     /// allocating if too many).
-    pub fn for_system(sys: &LinearSystem, lam: f64, z0: u64, mu: f64, kmax: u64) -> Result<Self> {
+    pub fn for_system(
+        sys: &LinearSystem,
+        lam: f64,
+        design: OnlineDesign,
+        kmax: u64,
+    ) -> Result<Self> {
         check_lam(lam)?;
-        check_mu(mu)?;
-        if z0 < 1 {
-            return Err(Error::invalid("z0", "must be at least 1"));
+        design.validate()?;
+        Self::check_depth(design, kmax)?;
+        let w = sys.checked_weighted_traces(1.0 - lam, tau_needed(design.z0, kmax), "r")?;
+        Segments::new(&w, lam, design, kmax)
+    }
+
+    /// Segments 0..=kmax of the expected time alone (`w = m`): enough for the flag rates, which
+    /// do not depend on the system.
+    pub fn masses_only(lam: f64, design: OnlineDesign, kmax: u64) -> Result<Self> {
+        check_lam(lam)?;
+        design.validate()?;
+        Self::check_depth(design, kmax)?;
+        let need = tau_needed(design.z0, kmax);
+        if need >= crate::riccati::MAX_TRACES {
+            return Err(Error::TooLarge {
+                arg: "r".into(),
+                requested: need,
+                limit: crate::riccati::MAX_TRACES,
+            });
         }
-        if mu < 1.0 && kmax > MAX_SEGMENTS_MIXED {
+        let mass: Vec<f64> = (0..=need as u64).map(|tau| apow(lam, tau)).collect();
+        Segments::new(&mass, lam, design, kmax)
+    }
+
+    fn check_depth(design: OnlineDesign, kmax: u64) -> Result<()> {
+        if design.mu < 1.0 && kmax > MAX_SEGMENTS_MIXED {
             return Err(Error::TooLarge {
                 arg: "r (with mu < 1)".into(),
                 requested: kmax as u128,
                 limit: MAX_SEGMENTS_MIXED as u128,
             });
         }
-        let w = sys.checked_weighted_traces(1.0 - lam, tau_needed(z0, kmax), "r")?;
-        Segments::new(&w, lam, z0, mu, kmax)
+        Ok(())
     }
 
-    /// Segments enough for a blocking mask (its longest cyclic run of blocked flags).
-    pub fn for_mask(sys: &LinearSystem, lam: f64, z0: u64, mu: f64, mask: &[bool]) -> Result<Self> {
-        let kmax = longest_cyclic_run(mask).min(mask.len().saturating_sub(1));
-        Segments::for_system(sys, lam, z0, mu, kmax as u64)
+    /// The deepest segment an attack reaches: its longest cyclic run of blocked flag-ACKs
+    /// (below the period, since at least one flag gets through).
+    pub fn depth(attack: &Attack) -> u64 {
+        attack
+            .longest_blocked_run()
+            .min(attack.period().saturating_sub(1))
+    }
+
+    /// J under an attack: the first-r-of-t closed form when the attack has that shape, else the
+    /// mask sum. The attack must let at least one flag-ACK through.
+    pub fn j_attack(&self, attack: &Attack) -> Result<f64> {
+        attack.validate()?;
+        attack.check_lets_flags_through()?;
+        match attack.as_first_r() {
+            Some((r, t)) => {
+                self.check_holds(r)?;
+                Ok(self.j_first_r(r as usize, t as usize))
+            }
+            None => self.j_mask(&attack.blocking_mask()?),
+        }
+    }
+
+    /// Flag-ACKs per step under an attack (None: no attack).
+    pub fn attack_flag_rates(&self, attack: Option<&Attack>) -> Result<(f64, f64)> {
+        match attack {
+            None => self.flag_rates(&[false]),
+            Some(a) => {
+                a.validate()?;
+                self.flag_rates(&a.blocking_mask()?)
+            }
+        }
+    }
+
+    fn check_holds(&self, k: u64) -> Result<()> {
+        if (self.w.len() as u64) <= k {
+            return Err(Error::invalid(
+                "r",
+                format!("needs segments up to {k}, have {}", self.w.len()),
+            ));
+        }
+        Ok(())
     }
 
     /// J of the walk with a blocking mask over the attacker's counter (true = blocked).
@@ -193,7 +252,7 @@ impl Segments {
     }
 
     /// The numerator N(r, t) = t W_0 + a_r alone (with masses as `w`, the normaliser D).
-    pub fn j_first_r_num(&self, r: usize, t: usize) -> f64 {
+    pub fn first_r_numerator(&self, r: usize, t: usize) -> f64 {
         let (a, _) = self.first_r_offsets(r);
         t as f64 * self.w[0] + a[r]
     }
@@ -238,24 +297,6 @@ fn segment_sums(v: &[f64], z0: u64, mu: f64, kmax: u64) -> Vec<f64> {
         binom = next;
     }
     out
-}
-
-/// Longest run of `true` in the cyclic mask (mask.len() if all true).
-pub fn longest_cyclic_run(mask: &[bool]) -> usize {
-    let t = mask.len();
-    if mask.iter().all(|&b| b) {
-        return t;
-    }
-    let (mut best, mut cur) = (0, 0);
-    for i in 0..2 * t {
-        if mask[i % t] {
-            cur += 1;
-            best = best.max(cur);
-        } else {
-            cur = 0;
-        }
-    }
-    best
 }
 
 /// The most damaging mask with `blocked` of `t` flag-ACKs blocked (exhaustive, t <= 24), its J,
@@ -336,6 +377,10 @@ mod tests {
     use crate::chain::AttackChain;
     use crate::stationary;
 
+    fn fixed(z0: u64) -> OnlineDesign {
+        OnlineDesign::fixed(z0).unwrap()
+    }
+
     fn wtr(lam: f64, n: usize) -> Vec<f64> {
         (0..=n)
             .map(|i| (1.0 - lam).powi(i as i32) * (1.0 + 1.3f64.powi(i as i32)))
@@ -351,7 +396,7 @@ mod tests {
             (0.6, 2, 6, 13),
         ] {
             let w = wtr(lam, 200);
-            let seg = Segments::new(&w, lam, z0, 1.0, r as u64).unwrap();
+            let seg = Segments::new(&w, lam, fixed(z0), r as u64).unwrap();
             let chain = AttackChain::new(lam, z0, r as u64, t as u64).unwrap();
             let expect = stationary::j_attack(&chain, &w).unwrap();
             let got = seg.j_first_r(r, t);
@@ -367,7 +412,8 @@ mod tests {
         // Σ_k M_k over all segments = Σ_τ a^τ = 1/λ for any μ.
         for &mu in &[1.0, 0.4, 0.0] {
             let lam = 0.3;
-            let seg = Segments::new(&wtr(lam, 2000), lam, 2, mu, 600).unwrap();
+            let d = OnlineDesign::new(2, mu).unwrap();
+            let seg = Segments::new(&wtr(lam, 2000), lam, d, 600).unwrap();
             let total: f64 = seg.m.iter().sum();
             assert!((total - 1.0 / lam).abs() < 1e-10, "{mu}: {total}");
         }
@@ -375,19 +421,13 @@ mod tests {
 
     #[test]
     fn flag_rates_match_online_rate() {
-        // No attack: delivered = sent = the online high-power rate (ERRATA item 2).
+        // No attack: delivered = sent = the online high-power rate (Model note 2).
         for &(lam, z0, mu) in &[(0.5, 2u64, 1.0), (0.3, 3, 0.4), (0.8, 1, 0.0)] {
-            let seg = Segments::new(&wtr(lam, 50), lam, z0, mu, 2).unwrap();
+            let d = OnlineDesign::new(z0, mu).unwrap();
+            let seg = Segments::new(&wtr(lam, 50), lam, d, 2).unwrap();
             let (sent, delivered) = seg.flag_rates(&[false, false, false]).unwrap();
-            let expect = crate::schedules::online_high_power_rate(lam, z0, mu).unwrap();
+            let expect = d.high_power_rate(lam).unwrap();
             assert!((sent - expect).abs() < 1e-14 && (delivered - expect).abs() < 1e-14);
         }
-    }
-
-    #[test]
-    fn cyclic_runs() {
-        assert_eq!(longest_cyclic_run(&[true, false, true, true]), 3);
-        assert_eq!(longest_cyclic_run(&[false, false]), 0);
-        assert_eq!(longest_cyclic_run(&[true, true]), 2);
     }
 }

@@ -4,9 +4,11 @@
 use nalgebra::DMatrix;
 use proptest::prelude::*;
 
+use crate::attack::{longest_cyclic_run, Attack};
 use crate::chain::AttackChain;
 use crate::general;
-use crate::pattern::{longest_cyclic_run, Segments};
+use crate::online::OnlineDesign;
+use crate::pattern::Segments;
 use crate::riccati::LinearSystem;
 use crate::schedules::{j_max, j_online};
 use crate::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
@@ -52,7 +54,7 @@ proptest! {
         let Some(sys) = system(n, 1, &entries, scale) else { return Ok(()) };
         let a = 1.0 - lam;
         let w = sys.weighted_traces(a, ((z0 + 1) * (t + 1)) as usize + 2);
-        let jon = j_online(&w, lam, z0, 1.0).unwrap();
+        let jon = j_online(&w, lam, OnlineDesign::fixed(z0).unwrap()).unwrap();
         let jmax = j_max(&sys, lam).unwrap();
         let mut prev = jon;
         for r in 0..t {
@@ -71,11 +73,13 @@ proptest! {
         let tr = |i: usize| 1.0 + 0.3 * i as f64 + 1.1f64.powi(i as i32);
         let need = crate::pattern::tau_needed(z0, kmax) as usize;
         let w: Vec<f64> = (0..=need).map(|i| a_pow(lam, i) * tr(i)).collect();
-        let seg = Segments::new(&w, lam, z0, mu, kmax).unwrap();
+        let design = OnlineDesign::new(z0, mu).unwrap();
+        let seg = Segments::new(&w, lam, design, kmax).unwrap();
         let got = seg.j_mask(&bits).unwrap();
-        let (states, csr) = general::build(lam, z0, mu, &bits).unwrap();
+        let attack = Attack::mask(bits.clone()).unwrap();
+        let (states, csr) = general::general_attack_chain(lam, design, &attack).unwrap();
         let pi = gth(&csr).unwrap();
-        let expect: f64 = states.iter().zip(&pi).map(|(s, p)| p * tr(s.0 as usize)).sum();
+        let expect: f64 = states.iter().zip(&pi).map(|(s, p)| p * tr(s.tau as usize)).sum();
         prop_assert!((got - expect).abs() < 1e-11 * expect, "{} vs {}", got, expect);
     }
 }

@@ -15,8 +15,8 @@ use std::collections::BTreeMap;
 
 use crate::chain::{AttackChain, Csr};
 use crate::error::{Error, Result};
+use crate::online::{apow, OnlineDesign};
 use crate::pattern::{tau_needed, Segments};
-use crate::schedules::apow;
 
 /// Largest stationary vector [`structured`] will allocate (0.8 GB of f64).
 pub const MAX_VECTOR_STATES: u128 = 100_000_000;
@@ -28,26 +28,6 @@ pub fn pairwise_sum(x: &[f64]) -> f64 {
     } else {
         let (l, r) = x.split_at(x.len() / 2);
         pairwise_sum(l) + pairwise_sum(r)
-    }
-}
-
-impl AttackChain {
-    /// c̃(j) of the module docs: relative rate at which level j's walk is entered at τ = 0.
-    fn c_tilde(&self, j: u64) -> f64 {
-        if j == 0 || j > self.r {
-            1.0
-        } else {
-            crate::schedules::one_minus_apow(self.lam, self.z0)
-        }
-    }
-
-    /// Segment of τ: 0 for τ ≤ z0, else ⌈τ/z0⌉ - 1.
-    pub fn segment(&self, tau: u64) -> u64 {
-        if tau <= self.z0 {
-            0
-        } else {
-            (tau - 1) / self.z0
-        }
     }
 }
 
@@ -66,8 +46,8 @@ pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
     let mass: Vec<f64> = (0..=tau_needed(chain.z0, chain.r))
         .map(|tau| apow(chain.lam, tau as u64))
         .collect();
-    let seg = Segments::new(&mass, chain.lam, chain.z0, 1.0, chain.r)?;
-    let scale = 1.0 / seg.j_first_r_num(chain.r as usize, chain.t as usize);
+    let seg = Segments::new(&mass, chain.lam, OnlineDesign::fixed(chain.z0)?, chain.r)?;
+    let scale = 1.0 / seg.first_r_numerator(chain.r as usize, chain.t as usize);
     let mut pi = Vec::with_capacity(n as usize);
     for sigma in 0..chain.t {
         let mut pow = scale;
@@ -84,7 +64,7 @@ pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
 /// τ = 0..=(r+1)(z0+1): the structured law summed per segment (the renewal form of
 /// [`crate::pattern`] with μ = 1). O(r z0).
 pub fn j_attack(chain: &AttackChain, w: &[f64]) -> Result<f64> {
-    let seg = Segments::new(w, chain.lam, chain.z0, 1.0, chain.r)?;
+    let seg = Segments::new(w, chain.lam, OnlineDesign::fixed(chain.z0)?, chain.r)?;
     Ok(seg.j_first_r(chain.r as usize, chain.t as usize))
 }
 

@@ -96,9 +96,13 @@ fn offsets(seg: &Segments, t_max: u64) -> Result<(Vec<f64>, Vec<f64>, f64, f64)>
 /// Result of a sweep: one entry per fraction, in increasing β.
 #[derive(Debug, Clone, Default)]
 pub struct Sweep {
+    /// Blocked flag-ACKs per period.
     pub r: Vec<u32>,
+    /// Period in flag-ACKs.
     pub t: Vec<u32>,
+    /// β = r / t.
     pub beta: Vec<f64>,
+    /// J(r, t) under "block the first r of every t".
     pub j: Vec<f64>,
 }
 
@@ -173,7 +177,8 @@ mod tests {
         let w: Vec<f64> = (0..400)
             .map(|i| 0.5f64.powi(i) * (1.0 + 1.44f64.powi(i)))
             .collect();
-        let seg = Segments::new(&w, lam, 2, 1.0, 60).unwrap();
+        let design = crate::online::OnlineDesign::fixed(2).unwrap();
+        let seg = Segments::new(&w, lam, design, 60).unwrap();
         let s = sweep(&seg, 61).unwrap();
         for i in (0..s.r.len()).step_by(7) {
             let single = seg.j_first_r(s.r[i] as usize, s.t[i] as usize);

@@ -118,8 +118,10 @@ mod tests {
     fn online_curve_converges_to_stationary() {
         let lam = 0.5;
         let tr: Vec<f64> = (0..40).map(|i| 1.0 + i as f64).collect();
-        let (states, csr) = general::build(lam, 2, 1.0, &[false]).unwrap();
-        let taus: Vec<u64> = states.iter().map(|s| s.0).collect();
+        let design = crate::online::OnlineDesign::fixed(2).unwrap();
+        let no_attack = crate::attack::Attack::mask(vec![false]).unwrap();
+        let (states, csr) = general::general_attack_chain(lam, design, &no_attack).unwrap();
+        let taus: Vec<u64> = states.iter().map(|s| s.tau).collect();
         let c = chain(&csr, &taus, &tr, 200).unwrap();
         assert_eq!(c[0], tr[0]);
         // Step 2: low power, τ = 0 or 1 with probability 1/2 each.

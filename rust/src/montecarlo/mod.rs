@@ -75,7 +75,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
-use crate::error::{check_lam, check_mu, Error, Result};
+use crate::error::{Error, Result};
+use crate::online::{check_lam, OnlineDesign};
 use crate::riccati::LinearSystem;
 use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
 
@@ -369,13 +370,7 @@ impl Plan {
                 plan.pattern = pattern.clone();
             }
             McSchedule::Online { z0, mu } => {
-                if *z0 < 1 {
-                    return Err(Error::invalid(
-                        "z0",
-                        format!("must be at least 1, got {z0}"),
-                    ));
-                }
-                check_mu(*mu)?;
+                OnlineDesign::new(*z0, *mu)?;
                 plan.online = true;
                 plan.z0 = *z0;
                 // μ = 1 and μ = 0 are deterministic memory lengths: no draw.

@@ -1,0 +1,244 @@
+//! The channel and the ACK-based online schedule's parameters: λ, the memory (z0, μ), the
+//! memory walk's probabilities, the high-power rate and the design that spends a budget.
+//!
+//! The remote detector counts losses since its last reset; after z0 of them (z0 + 1 with
+//! probability 1 - μ, Model note 2) it sends a flag-ACK and the sensor uses high power next step.
+//! With a = 1 - λ, a flag comes before the next arrival with probability
+//! u = a^z0 (μ + (1-μ) a), the same after every reset.
+
+use crate::error::{Error, Result};
+use crate::schedules::Ratio;
+
+/// Checks `0 < lam < 1` (the low-power arrival probability λ).
+pub fn check_lam(lam: f64) -> Result<()> {
+    if lam.is_finite() && lam > 0.0 && lam < 1.0 {
+        Ok(())
+    } else {
+        Err(Error::invalid(
+            "lam",
+            format!("must lie in (0, 1), got {lam}"),
+        ))
+    }
+}
+
+/// a^k with a = 1 - lam, via exp(k ln(1 - lam)) so that tiny lam keeps its precision.
+pub fn apow(lam: f64, k: u64) -> f64 {
+    (k as f64 * (-lam).ln_1p()).exp()
+}
+
+/// 1 - a^k without cancellation: for lam below ~1e-16, 1 - lam rounds to 1 and the naive
+/// difference would be 0 (a division by zero in every cost).
+pub fn one_minus_apow(lam: f64, k: u64) -> f64 {
+    -(k as f64 * (-lam).ln_1p()).exp_m1()
+}
+
+/// The online schedule's memory: a flag-ACK after `z0` losses, or `z0 + 1` with probability
+/// `1 - mu` (Theorem 4.5 of Han et al., Model note 2).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OnlineDesign {
+    /// Memory length z0 >= 1.
+    pub z0: u64,
+    /// Probability of the z0-step memory at each reset, in [0, 1] (1: fixed length z0).
+    pub mu: f64,
+}
+
+impl OnlineDesign {
+    /// A validated design: `z0 >= 1`, `0 <= mu <= 1`.
+    pub fn new(z0: u64, mu: f64) -> Result<Self> {
+        if z0 < 1 {
+            return Err(Error::invalid(
+                "z0",
+                format!("must be at least 1, got {z0}"),
+            ));
+        }
+        if !(mu.is_finite() && (0.0..=1.0).contains(&mu)) {
+            return Err(Error::invalid(
+                "mu",
+                format!("must lie in [0, 1], got {mu}"),
+            ));
+        }
+        Ok(OnlineDesign { z0, mu })
+    }
+
+    /// The fixed memory z0 (μ = 1).
+    pub fn fixed(z0: u64) -> Result<Self> {
+        Self::new(z0, 1.0)
+    }
+
+    /// Re-checks a design whose public fields may have been set by hand.
+    pub fn validate(&self) -> Result<()> {
+        Self::new(self.z0, self.mu).map(|_| ())
+    }
+
+    /// u = a^z0 (μ + (1-μ) a): the chance that a flag-ACK comes before the next arrival.
+    pub fn flag_probability(&self, lam: f64) -> f64 {
+        apow(lam, self.z0) * (self.mu + (1.0 - self.mu) * (1.0 - lam))
+    }
+
+    /// 1 - u without cancellation: (1 - a^z0) + a^z0 (1-μ) λ.
+    pub fn no_flag_probability(&self, lam: f64) -> f64 {
+        one_minus_apow(lam, self.z0) + apow(lam, self.z0) * (1.0 - self.mu) * lam
+    }
+
+    /// Denominator 1 - μ a^(z0+1) - (1-μ) a^(z0+2) of the online formulas (Model note 2),
+    /// written as μ (1 - a^(z0+1)) + (1-μ) (1 - a^(z0+2)).
+    pub(crate) fn renewal_denominator(&self, lam: f64) -> f64 {
+        self.mu * one_minus_apow(lam, self.z0 + 1)
+            + (1.0 - self.mu) * one_minus_apow(lam, self.z0 + 2)
+    }
+
+    /// Long-run fraction of high-power steps without attack (= flag-ACKs per step):
+    /// λ u / (1 - μ a^(z0+1) - (1-μ) a^(z0+2)).
+    pub fn high_power_rate(&self, lam: f64) -> Result<f64> {
+        check_lam(lam)?;
+        self.validate()?;
+        Ok(lam * self.flag_probability(lam) / self.renewal_denominator(lam))
+    }
+}
+
+/// Largest memory [`design_online`] returns.
+pub const MAX_DESIGN_Z0: u64 = 1_000_000;
+
+/// Relative tolerance within which [`design_online`] takes the budget to equal f(z0, 1) exactly
+/// and returns μ = 1 (a few roundings of the rate's floating-point evaluation).
+pub const DESIGN_BOUNDARY_TOL: f64 = 1e-13;
+
+/// The online design whose high-power rate equals the energy ratio p/q.
+///
+/// The rate f(z0, μ) falls from f(z0, 1) to f(z0, 0) = f(z0 + 1, 1) as μ goes from 1 to 0, so
+/// the budget fixes z0 (the bracket f(z0+1, 1) < p/q <= f(z0, 1), found by bisection) and then μ
+/// in closed form. This is double-precision arithmetic: a budget within
+/// [`DESIGN_BOUNDARY_TOL`] (relative) of f(z0, 1) gives μ = 1. (The Python package settles that
+/// boundary in exact rational arithmetic and passes its design in.)
+pub fn design_online(lam: f64, ratio: Ratio) -> Result<OnlineDesign> {
+    check_lam(lam)?;
+    let rho = ratio.value();
+    let fixed = |z: u64| OnlineDesign { z0: z, mu: 1.0 }.high_power_rate(lam);
+    let top = fixed(1)?;
+    if rho > top * (1.0 + DESIGN_BOUNDARY_TOL) {
+        return Err(Error::invalid(
+            "ratio",
+            format!(
+                "{ratio} exceeds the largest high-power rate an online schedule with z0 >= 1 can \
+                 use at lam={lam} ({top:.6} = (1-lam)/(2-lam))"
+            ),
+        ));
+    }
+    // Largest z with f(z, 1) >= rho (up to the tolerance); f falls geometrically in z.
+    let meets = |z: u64| -> Result<bool> { Ok(fixed(z)? >= rho * (1.0 - DESIGN_BOUNDARY_TOL)) };
+    let (mut lo, mut hi) = (1u64, 2u64);
+    while meets(hi)? && hi < 1 << 40 {
+        (lo, hi) = (hi, hi * 2);
+    }
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if meets(mid)? {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    let z0 = lo;
+    if z0 > MAX_DESIGN_Z0 {
+        return Err(Error::invalid(
+            "ratio",
+            format!(
+                "{ratio} is so small that the online schedule would need a memory of about {z0} \
+                 steps (more than {MAX_DESIGN_Z0})"
+            ),
+        ));
+    }
+    let f1 = fixed(z0)?;
+    if (f1 - rho).abs() <= DESIGN_BOUNDARY_TOL * rho {
+        return OnlineDesign::new(z0, 1.0);
+    }
+    // Solve f(z0, μ) = rho for μ: rho (1 - a^(z0+2)) - λ a^(z0+1) = μ λ a^z0 (1 - a)... written
+    // as in the exact form: μ = (ρ(1 - a^(z0+2)) - λ a^(z0+1)) / (λ a^z0 (λ + ρ a)).
+    let a = 1.0 - lam;
+    let az = apow(lam, z0);
+    let mu = (rho * one_minus_apow(lam, z0 + 2) - lam * az * a) / (lam * az * (lam + rho * a));
+    OnlineDesign::new(z0, mu.clamp(0.0, 1.0))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lam_is_checked() {
+        for bad in [0.0, 1.0, -0.1, f64::NAN, f64::INFINITY] {
+            let e = check_lam(bad).unwrap_err();
+            assert!(e.to_string().starts_with("lam:"), "{e}");
+        }
+        assert!(check_lam(1e-300).is_ok());
+    }
+
+    #[test]
+    fn design_is_validated() {
+        assert!(OnlineDesign::new(0, 1.0)
+            .unwrap_err()
+            .to_string()
+            .starts_with("z0:"));
+        assert!(OnlineDesign::new(2, 1.5)
+            .unwrap_err()
+            .to_string()
+            .starts_with("mu:"));
+        assert!(OnlineDesign::new(2, f64::NAN).is_err());
+    }
+
+    #[test]
+    fn tiny_lambda_keeps_precision() {
+        // λ = 1e-20: 1 - λ rounds to 1, but the rate is λ a^z0 / (1 - a^(z0+1)) ≈ 1/(z0+1).
+        let r = OnlineDesign::fixed(2)
+            .unwrap()
+            .high_power_rate(1e-20)
+            .unwrap();
+        assert!((r - 1.0 / 3.0).abs() < 1e-12, "{r}");
+        let d = OnlineDesign::new(3, 0.5).unwrap();
+        assert!((d.no_flag_probability(1e-20) - 3.5e-20).abs() < 1e-32);
+    }
+
+    #[test]
+    fn rate_reduces_to_fixed_memory() {
+        // Model note 2: λ = 0.5, z0 = 2, μ = 1 uses high power 1/7 of the time.
+        let r = OnlineDesign::fixed(2)
+            .unwrap()
+            .high_power_rate(0.5)
+            .unwrap();
+        assert!((r - 1.0 / 7.0).abs() < 1e-15);
+        // μ = 0 is the fixed memory z0 + 1.
+        let r0 = OnlineDesign::new(3, 0.0)
+            .unwrap()
+            .high_power_rate(0.3)
+            .unwrap();
+        let r1 = OnlineDesign::fixed(4)
+            .unwrap()
+            .high_power_rate(0.3)
+            .unwrap();
+        assert!((r0 - r1).abs() < 1e-15);
+    }
+
+    #[test]
+    fn design_spends_the_budget() {
+        // The paper's example: λ = 1/2, ratio 1/7 is met exactly by z0 = 2, μ = 1.
+        let d = design_online(0.5, Ratio::new(1, 7).unwrap()).unwrap();
+        assert_eq!((d.z0, d.mu), (2, 1.0));
+        for &(lam, p, q) in &[(0.3, 1u64, 5u64), (0.5, 1, 9), (0.8, 1, 11), (0.05, 1, 40)] {
+            let ratio = Ratio::new(p, q).unwrap();
+            let d = design_online(lam, ratio).unwrap();
+            let rate = d.high_power_rate(lam).unwrap();
+            assert!(
+                (rate - ratio.value()).abs() < 1e-12,
+                "{lam} {p}/{q}: {d:?} {rate}"
+            );
+            // The bracket: z0 + 1 with μ = 1 spends less than the budget.
+            let next = OnlineDesign::fixed(d.z0 + 1)
+                .unwrap()
+                .high_power_rate(lam)
+                .unwrap();
+            assert!(next < ratio.value());
+        }
+        let e = design_online(0.5, Ratio::new(1, 2).unwrap()).unwrap_err();
+        assert!(e.to_string().starts_with("ratio:"), "{e}");
+    }
+}
