@@ -1,12 +1,52 @@
-//! `fakeack`: exact analysis and Monte Carlo of the fake-ACK attack on ACK-based sensor power
-//! schedules for remote state estimation (Li, Quevedo, Dey, Shi).
+//! `fakeack`: exact analysis and Monte Carlo of the fake-acknowledgment attack on ACK-based
+//! sensor power schedules for remote state estimation, after Y. Li, D. E. Quevedo, S. Dey and
+//! L. Shi, *Fake-Acknowledgment Attack on ACK-based Sensor Power Schedule for Remote State
+//! Estimation*, in the corrected model (the README's "Model notes" list each correction).
 //!
-//! The numerical core is plain Rust and knows nothing of Python; `bindings` (behind the `python`
-//! feature) is the only module that touches PyO3.
+//! A smart sensor runs a Kalman filter and sends its estimate over a lossy link, at high power
+//! (always arrives) or low power (arrives with probability λ) under an energy budget. The remote
+//! side's event detector turns runs of losses into flag-ACKs that ask for high power (the online
+//! schedule); an attacker who blocks a fraction β of them degrades the estimate, and past a
+//! threshold β̄ the sensor does better ignoring ACKs (the offline schedule).
 //!
-//! Notation follows the paper: `a = 1 - lam`, `tr_i = Tr h^i(P̄)`, `w_i = a^i tr_i` (the
-//! *weighted* traces, which stay finite where `tr_i` alone would overflow), `tau` the holding time
-//! since the last arrival and `sigma` the attacker's flag-ACK counter.
+//! # Where to start
+//! [`LinearSystem`] holds a system and its steady-state covariance P̄, and has a method for every
+//! quantity: [`j_offline`](LinearSystem::j_offline), [`j_online`](LinearSystem::j_online),
+//! [`j_max`](LinearSystem::j_max), [`j_attack`](LinearSystem::j_attack) under any [`Attack`],
+//! [`j_attack_limit`](LinearSystem::j_attack_limit), [`beta_sweep`](LinearSystem::beta_sweep),
+//! [`beta_bar`](LinearSystem::beta_bar) (both thresholds),
+//! [`choose_schedule`](LinearSystem::choose_schedule) (the sensor's decision),
+//! [`worst_mask`](LinearSystem::worst_mask),
+//! [`expected_trace_curve`](LinearSystem::expected_trace_curve) (exact finite-horizon curves) and
+//! [`simulate`](LinearSystem::simulate) (Monte Carlo of the protocol). The online schedule's
+//! parameters are an [`OnlineDesign`], from [`design_online`] or given; the budget is a
+//! [`Ratio`]; [`flag_rates`] gives the flag-ACK rates.
+//!
+//! ```
+//! use fakeack::{design_online, Attack, LinearSystem, Ratio};
+//!
+//! let system = LinearSystem::scalar(1.2, 0.7, 0.8, 0.8)?; // the paper's example
+//! let (lam, ratio) = (0.5, Ratio::new(1, 7)?);
+//! let design = design_online(lam, ratio)?; // z0 = 2, mu = 1
+//! let j_off = system.j_offline(lam, ratio)?;
+//! let j_att = system.j_attack(lam, design, &Attack::periodic(1, 5)?)?;
+//! let bar = system.beta_bar(lam, ratio, design, 60)?;
+//! assert!(j_att < j_off && 0.32 < bar.limit && bar.limit < 0.33);
+//! # Ok::<(), fakeack::Error>(())
+//! ```
+//!
+//! `examples/paper.rs` (`cargo run --release --example paper`) prints every number of the
+//! paper's example. The modules below are the building blocks, one concept each.
+//!
+//! # Notation
+//! Following the paper: `a = 1 - lam`, `tr_i = Tr h^i(P̄)`, `w_i = a^i tr_i` (the *weighted*
+//! traces, which stay finite where `tr_i` alone would overflow), `tau` the holding time since the
+//! last arrival and `sigma` the attacker's flag-ACK counter.
+//!
+//! The numerical core is plain Rust; the `python` feature adds the PyO3 bindings of the Python
+//! package `fakeack` (a private module that only converts types).
+
+#![warn(missing_docs)]
 
 pub mod analysis;
 pub mod attack;

@@ -44,6 +44,7 @@ pub struct Farey {
 }
 
 impl Farey {
+    /// The fractions r/t in lowest terms with 1 <= r < t <= n, in increasing order.
     pub fn new(n: u64) -> Self {
         let n = n.max(1) as i64;
         Farey {
