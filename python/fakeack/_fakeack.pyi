@@ -13,7 +13,7 @@ __all__ = [
     "DEFAULT_TOL",
     "MAX_BUILD_STATES",
     "MAX_VECTOR_STATES",
-    "System",
+    "LinearSystem",
     "attack_chain",
     "balance_residual",
     "flag_rates",
@@ -45,7 +45,7 @@ _CsrArrays = tuple[
 ]
 
 @final
-class System:
+class LinearSystem:
     def __new__(
         cls,
         a: npt.NDArray[np.float64],
@@ -54,7 +54,7 @@ class System:
         r: npt.NDArray[np.float64],
         tol: float = ...,
         max_iter: int = ...,
-    ) -> System: ...
+    ) -> LinearSystem: ...
     def pbar(self) -> npt.NDArray[np.float64]: ...
     @property
     def residual(self) -> float: ...
@@ -99,7 +99,7 @@ def stationary_gth(
 def balance_residual(lam: float, z0: int, r: int, t: int, pi: npt.NDArray[np.float64]) -> float: ...
 def general_attack_chain(lam: float, z0: int, mu: float, attack: Attack) -> _CsrArrays: ...
 def simulate(
-    system: System,
+    system: LinearSystem,
     lam: float,
     kind: str,
     p: int,

@@ -84,7 +84,7 @@ class LinearSystem:
         if tol <= 0:
             raise ValueError(f"tol must be positive, got {tol}")
         max_iter = as_int("max_iter", max_iter, minimum=1)
-        self._core = _fakeack.System(a, c, q, r, tol, max_iter)
+        self._core = _fakeack.LinearSystem(a, c, q, r, tol, max_iter)
         for arr in (a, c, q, r):
             arr.setflags(write=False)
         self._A, self._C, self._Q, self._R = a, c, q, r

@@ -76,7 +76,24 @@ pub fn farey(n: u64) -> Vec<(u32, u32)> {
 }
 
 /// Checks t_max and returns the per-r offsets (a_r, b_r) and (W_0, M_0) a sweep needs.
-fn offsets(seg: &Segments, t_max: u64) -> Result<(Vec<f64>, Vec<f64>, f64, f64)> {
+/// What J(r, t) = (t W_0 + a_r) / (t M_0 + b_r) needs for every r < t_max (see
+/// [`Segments::first_r_offsets`]).
+struct FirstR {
+    a: Vec<f64>,
+    b: Vec<f64>,
+    w0: f64,
+    m0: f64,
+}
+
+impl FirstR {
+    #[inline]
+    fn j(&self, r: u32, t: u32) -> f64 {
+        let t = t as f64;
+        (t * self.w0 + self.a[r as usize]) / (t * self.m0 + self.b[r as usize])
+    }
+}
+
+fn offsets(seg: &Segments, t_max: u64) -> Result<FirstR> {
     if t_max < 2 {
         return Err(Error::invalid(
             "t_max",
@@ -91,7 +108,12 @@ fn offsets(seg: &Segments, t_max: u64) -> Result<(Vec<f64>, Vec<f64>, f64, f64)>
         ));
     }
     let (a, b) = seg.first_r_offsets(rmax);
-    Ok((a, b, seg.w[0], seg.m[0]))
+    Ok(FirstR {
+        a,
+        b,
+        w0: seg.w[0],
+        m0: seg.m[0],
+    })
 }
 
 /// Result of a sweep: one entry per fraction, in increasing β.
@@ -116,15 +138,12 @@ pub fn sweep(seg: &Segments, t_max: u64) -> Result<Sweep> {
             limit: MAX_FRACTIONS,
         });
     }
-    let (a, b, w0, m0) = offsets(seg, t_max)?;
+    let first_r = offsets(seg, t_max)?;
     let fr = farey(t_max);
     let j: Vec<f64> = fr
         .par_iter()
         .with_min_len(1 << 16)
-        .map(|&(r, t)| {
-            let t = t as f64;
-            (t * w0 + a[r as usize]) / (t * m0 + b[r as usize])
-        })
+        .map(|&(r, t)| first_r.j(r, t))
         .collect();
     let beta = fr
         .par_iter()
@@ -137,11 +156,8 @@ pub fn sweep(seg: &Segments, t_max: u64) -> Result<Sweep> {
 
 /// Smallest r/t (t <= t_max, lowest terms) with J(r, t) >= j_ref, without storing the sweep.
 pub fn first_crossing(seg: &Segments, t_max: u64, j_ref: f64) -> Result<Option<(u32, u32)>> {
-    let (a, b, w0, m0) = offsets(seg, t_max)?;
-    Ok(Farey::new(t_max).find(|&(r, t)| {
-        let t = t as f64;
-        (t * w0 + a[r as usize]) / (t * m0 + b[r as usize]) >= j_ref
-    }))
+    let first_r = offsets(seg, t_max)?;
+    Ok(Farey::new(t_max).find(|&(r, t)| first_r.j(r, t) >= j_ref))
 }
 
 #[cfg(test)]

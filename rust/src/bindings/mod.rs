@@ -1,0 +1,109 @@
+//! The PyO3 module `fakeack._fakeack`: converts types, calls the crate's API ([`crate::analysis`]
+//! and the types the crate root re-exports) and maps [`Error`] to Python exceptions. No
+//! numerics here; long calls run with the GIL released on owned data.
+//!
+//! One file per group of Python-facing items: `system` (the system class and its costs),
+//! `chains` (chains, stationary laws, schedules and rates), `simulate` (the Monte Carlo).
+
+use nalgebra::DMatrix;
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
+use pyo3::prelude::*;
+
+use crate::error::Error;
+use crate::{riccati, Attack, OnlineDesign};
+
+mod chains;
+mod simulate;
+mod system;
+
+create_exception!(
+    _fakeack,
+    ConvergenceError,
+    PyValueError,
+    "An iterative solver stopped without meeting its tolerance."
+);
+
+impl From<Error> for PyErr {
+    fn from(e: Error) -> PyErr {
+        match e {
+            Error::InvalidArgument { .. } | Error::TooLarge { .. } => {
+                PyValueError::new_err(e.to_string())
+            }
+            Error::NotConverged { .. } => ConvergenceError::new_err(e.to_string()),
+            Error::Interrupted => PyKeyboardInterrupt::new_err(e.to_string()),
+        }
+    }
+}
+
+pub(crate) fn to_dmatrix(x: &PyReadonlyArray2<'_, f64>) -> DMatrix<f64> {
+    let v = x.as_array();
+    DMatrix::from_fn(v.nrows(), v.ncols(), |i, j| v[[i, j]])
+}
+
+pub(crate) fn to_numpy<'py>(py: Python<'py>, m: &DMatrix<f64>) -> Bound<'py, PyArray2<f64>> {
+    Array2::from_shape_fn((m.nrows(), m.ncols()), |(i, j)| m[(i, j)]).into_pyarray(py)
+}
+
+pub(crate) fn design(z0: u64, mu: f64) -> PyResult<OnlineDesign> {
+    Ok(OnlineDesign::new(z0, mu)?)
+}
+
+/// An attack on the flag-ACKs (wrapped by `fakeack.PeriodicBlocking` and friends).
+#[pyclass(frozen, name = "Attack", module = "fakeack._fakeack")]
+pub(crate) struct PyAttack {
+    pub(crate) inner: Attack,
+}
+
+#[pymethods]
+impl PyAttack {
+    #[staticmethod]
+    fn periodic(r: u64, t: u64) -> PyResult<Self> {
+        Ok(PyAttack {
+            inner: Attack::periodic(r, t)?,
+        })
+    }
+
+    #[staticmethod]
+    fn mask(mask: Vec<bool>) -> PyResult<Self> {
+        Ok(PyAttack {
+            inner: Attack::mask(mask)?,
+        })
+    }
+
+    fn __str__(&self) -> String {
+        self.inner.to_string()
+    }
+}
+
+pub(crate) fn attack_of(a: Option<&Bound<'_, PyAttack>>) -> Option<Attack> {
+    a.map(|a| a.get().inner.clone())
+}
+
+#[pymodule]
+#[pyo3(name = "_fakeack")]
+fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<system::PySystem>()?;
+    m.add_class::<PyAttack>()?;
+    m.add("ConvergenceError", m.py().get_type::<ConvergenceError>())?;
+    m.add_function(wrap_pyfunction!(chains::offline_schedule, m)?)?;
+    m.add_function(wrap_pyfunction!(chains::high_power_rate, m)?)?;
+    m.add_function(wrap_pyfunction!(chains::flag_rates, m)?)?;
+    m.add_function(wrap_pyfunction!(chains::num_states, m)?)?;
+    m.add_function(wrap_pyfunction!(chains::attack_chain, m)?)?;
+    m.add_function(wrap_pyfunction!(chains::stationary_structured, m)?)?;
+    m.add_function(wrap_pyfunction!(chains::general_attack_chain, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(chains::stationary_gth, m)?)?;
+    m.add_function(wrap_pyfunction!(chains::balance_residual, m)?)?;
+    m.add("MAX_BUILD_STATES", crate::chain::MAX_BUILD_STATES as u64)?;
+    m.add(
+        "MAX_VECTOR_STATES",
+        crate::stationary::MAX_VECTOR_STATES as u64,
+    )?;
+    m.add("DEFAULT_TOL", riccati::DEFAULT_TOL)?;
+    m.add("DEFAULT_MAX_ITER", riccati::DEFAULT_MAX_ITER)?;
+    Ok(())
+}
