@@ -13,9 +13,7 @@ import numpy as np
 
 from ._cli_io import _frac, atomic_write
 from .attack import attack_chain, stationary_distribution
-from .config import (
-    AttackSpec,
-)
+from .attacks import PeriodicBlocking
 from .schedules import (
     OnlineDesign,
     offline_schedule,
@@ -184,7 +182,7 @@ def _analysis_json(an: Analysis) -> dict[str, Any]:
 
 
 def _write_figures(
-    an: Analysis, outdir: Path, *, paper_beta_bar: float | None, stationary: AttackSpec | None
+    an: Analysis, outdir: Path, *, paper_beta_bar: float | None, stationary: PeriodicBlocking | None
 ) -> list[Path]:
     """Draw and save fig3_jk, fig4_beta (if a sweep) and fig_stationary (if ``stationary``)."""
     from . import plots

@@ -41,6 +41,7 @@ from ._cli_report import (
     _write_figures,
 )
 from .attack import j_attack
+from .attacks import as_attack
 from .config import (
     Config,
     ConfigError,
@@ -48,7 +49,6 @@ from .config import (
     example_text,
     load_config,
     loads,
-    parse_attack,
     parse_config,
 )
 from .montecarlo import OfflineSchedule, OnlineSchedule, expected_trace_curve
@@ -328,7 +328,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     s, lam, ratio, cfg = _resolve_system(args)
     if args.runs < 2:
         raise ValueError(f"--runs must be at least 2 (the standard error needs two runs), got {args.runs}")
-    attack = None if args.attack is None else parse_attack(args.attack, "--attack")
+    attack = as_attack(args.attack, "--attack")
     if args.schedule == "offline":
         if args.z0 is not None or args.mu is not None:
             raise ValueError("--z0 and --mu apply to the online schedule only")

@@ -16,10 +16,8 @@ import numpy as np
 
 from ._cli_io import _frac
 from .attack import j_attack
-from .config import (
-    AttackSpec,
-    MonteCarloConfig,
-)
+from .attacks import PeriodicBlocking
+from .config import MonteCarloConfig
 from .montecarlo import OfflineSchedule, OnlineSchedule, SimulationResult, expected_trace_curve, simulate
 from .schedules import (
     OnlineDesign,
@@ -42,7 +40,7 @@ DEFAULT_OUT = "fakeack-out"
 PAPER_SYSTEM = {"A": 1.2, "C": 0.7, "Q": 0.8, "R": 0.8}
 PAPER_LAM = 0.5
 PAPER_RATIO = Fraction(1, 7)
-PAPER_ATTACKS = (AttackSpec(1, 5), AttackSpec(2, 3))
+PAPER_ATTACKS = (PeriodicBlocking(1, 5), PeriodicBlocking(2, 3))
 PAPER_PRINTED = {
     "j_offline": "2.0953",
     "j_online": "1.6399",
@@ -51,7 +49,7 @@ PAPER_PRINTED = {
 }
 PAPER_BETA_BAR = 0.28
 # The heat map of the stationary law: a longer attack than the paper's 2/3 shows more structure.
-STATIONARY_EXAMPLE = AttackSpec(4, 9)
+STATIONARY_EXAMPLE = PeriodicBlocking(4, 9)
 
 FLAG_SIGMAS = 4.0
 
@@ -123,7 +121,7 @@ class Analysis:
     ratio: Fraction
     online: OnlineDesign
     designed: bool
-    attacks: tuple[AttackSpec, ...]
+    attacks: tuple[PeriodicBlocking, ...]
     horizon: int
     mc: MonteCarloConfig | None
     mc_note: str | None
@@ -185,7 +183,7 @@ def _custom_threshold(
 
 
 def _run_mc(
-    s: LinearSystem, lam: float, sched: Any, mc: MonteCarloConfig, attack: AttackSpec | None
+    s: LinearSystem, lam: float, sched: Any, mc: MonteCarloConfig, attack: PeriodicBlocking | None
 ) -> SimulationResult:
     return simulate(
         s,
@@ -206,7 +204,7 @@ def analyse(
     ratio: Fraction,
     online: OnlineDesign,
     designed: bool,
-    attacks: Sequence[AttackSpec],
+    attacks: Sequence[PeriodicBlocking],
     t_max: int | None,
     mc: MonteCarloConfig | None,
     horizon: int = DEFAULT_HORIZON,
@@ -227,7 +225,7 @@ def analyse(
         ``(z0, mu)`` of the online schedule.
     designed : bool
         Whether ``online`` is :func:`fakeack.design_online` ``(lam, ratio)``.
-    attacks : sequence of AttackSpec
+    attacks : sequence of PeriodicBlocking
         The attacks to evaluate.
     t_max : int or None
         Largest attack period of the sweep; None skips sweep and thresholds.
@@ -250,7 +248,7 @@ def analyse(
     off, on = OfflineSchedule(ratio), OnlineSchedule(z0, mu)
     j_off, j_on, jmx = j_offline(s, lam, ratio), j_online(s, lam, z0, mu), j_max(s, lam)
 
-    specs: list[tuple[str, str, Any, AttackSpec | None, float]] = [
+    specs: list[tuple[str, str, Any, PeriodicBlocking | None, float]] = [
         ("j_offline", "J_offline", off, None, j_off),
         ("j_online", "J_online", on, None, j_on),
     ]
