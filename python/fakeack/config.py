@@ -15,7 +15,6 @@ example (:func:`example_text`), which is the paper's system of Sec. V::
 from __future__ import annotations
 
 import difflib
-import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -26,7 +25,21 @@ from typing import Any
 
 import numpy as np
 
-from ._validate import MODES, PROTOCOLS, as_fraction, as_matrix, as_ratio
+from ._config_values import (
+    ConfigError,
+    Section,
+    check_keys,
+    config_error,
+    read_choice,
+    read_fraction,
+    read_int,
+    read_matrix,
+    read_real,
+    require,
+    strip_name,
+    toml_kind,
+)
+from ._validate import MODES, PROTOCOLS, as_ratio
 from .attacks import PeriodicBlocking, as_attack
 from .schedules import OnlineDesign, design_online, energy_ratio
 from .system import LinearSystem
@@ -50,133 +63,25 @@ __all__ = [
 ]
 
 
-class ConfigError(ValueError):
-    """A configuration problem; the message starts with ``config:`` and names the key."""
-
-
-def _err(section: str, key: str | None, problem: str) -> ConfigError:
-    where = f"[{section}]" + (f" {key}" if key else "")
-    return ConfigError(f"config: {where}: {problem}")
-
-
-def _kind(x: Any) -> str:
-    """TOML-ish name of a value's type, for messages."""
-    if isinstance(x, bool):
-        return "boolean"
-    if isinstance(x, int):
-        return "integer"
-    if isinstance(x, float):
-        return "float"
-    if isinstance(x, str):
-        return "string"
-    if isinstance(x, list):
-        return "array"
-    if isinstance(x, dict):
-        return "table"
-    return type(x).__name__
-
-
-def _strip_name(msg: str, name: str) -> str:
-    """``"A must be square"`` -> ``"must be square"`` (the key is already in the prefix)."""
-    for sep in (": ", " "):
-        if msg.startswith(name + sep):
-            return msg[len(name) + len(sep) :]
-    return msg
-
-
-def _fraction(section: str, key: str, x: Any) -> Fraction:
-    """A number or fraction string, read exactly by :func:`fakeack._validate.as_fraction`."""
-    try:
-        return as_fraction(key, x)
-    except TypeError:
-        problem = f'must be a number or a fraction string like "1/7", got {_kind(x)}'
-        raise _err(section, key, problem) from None
-    except ValueError as exc:
-        if isinstance(x, str):
-            raise _err(section, key, f'cannot read {x!r} as a number or fraction "p/q"') from None
-        raise _err(section, key, _strip_name(str(exc), key)) from None
-
-
-def _real(section: str, key: str, x: Any) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise _err(section, key, f"must be a number, got {_kind(x)} {x!r}")
-    v = float(x)
-    if not math.isfinite(v):
-        raise _err(section, key, f"must be finite, got {v}")
-    return v
-
-
-def _int(section: str, key: str, x: Any, minimum: int) -> int:
-    if isinstance(x, bool) or not isinstance(x, int):
-        raise _err(section, key, f"must be an integer, got {_kind(x)} {x!r}")
-    if x < minimum:
-        raise _err(section, key, f"must be at least {minimum}, got {x}")
-    return x
-
-
-def _choice(section: str, key: str, x: Any, allowed: tuple[str, ...]) -> str:
-    if x not in allowed:
-        options = " or ".join(f'"{a}"' for a in sorted(allowed))
-        raise _err(section, key, f"must be {options}, got {x!r}")
-    return x
-
-
-def _matrix(section: str, key: str, x: Any) -> np.ndarray:
-    def numeric(v: Any) -> bool:
-        if isinstance(v, list):
-            return all(numeric(u) for u in v)
-        return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-    if not numeric(x):
-        raise _err(section, key, f"must be a number or a nested list of numbers (rows), got {_kind(x)} {x!r}")
-    if isinstance(x, list) and x and not any(isinstance(u, list) for u in x):
-        raise _err(
-            section, key, f"must be a number or a list of rows, e.g. [[1.0, 0.0]], got the flat list {x!r}"
-        )
-    try:
-        return as_matrix(key, x)
-    except (TypeError, ValueError) as exc:
-        raise _err(section, key, _strip_name(str(exc), key)) from None
-
-
-@dataclass(frozen=True)
-class _Section:
-    """The keys a section accepts and, for a required section, what the error says is needed."""
-
-    keys: tuple[str, ...]
-    required: str | None = None
-
-
-_SECTIONS: dict[str, _Section] = {
-    "system": _Section(("A", "C", "Q", "R", "lam"), "A, C, Q, R and lam are required"),
-    "energy": _Section(("ratio", "Psi", "Delta", "delta"), 'give ratio = "p/q", or Psi, Delta, delta'),
-    "online": _Section(("design", "z0", "mu")),
-    "attack": _Section(("betas", "sweep")),
-    "montecarlo": _Section(("runs", "horizon", "seed", "mode", "protocol")),
+_SECTIONS: dict[str, Section] = {
+    "system": Section(("A", "C", "Q", "R", "lam"), "A, C, Q, R and lam are required"),
+    "energy": Section(("ratio", "Psi", "Delta", "delta"), 'give ratio = "p/q", or Psi, Delta, delta'),
+    "online": Section(("design", "z0", "mu")),
+    "attack": Section(("betas", "sweep")),
+    "montecarlo": Section(("runs", "horizon", "seed", "mode", "protocol")),
 }
-_SWEEP_SECTION = _Section(("t_max",))
+_SWEEP_SECTION = Section(("t_max",))
 
 
 def _check_sections(data: Any) -> None:
     if not isinstance(data, dict):
-        raise ConfigError(f"config: expected a TOML table at the top level, got {_kind(data)}")
+        raise ConfigError(f"config: expected a TOML table at the top level, got {toml_kind(data)}")
     for name in data:
         if name not in _SECTIONS:
             hint = difflib.get_close_matches(name, list(_SECTIONS), n=1)
             tip = f"; did you mean [{hint[0]}]?" if hint else ""
             expected = ", ".join(f"[{s}]" for s in _SECTIONS)
             raise ConfigError(f"config: [{name}]: unknown section (expected {expected}){tip}")
-
-
-def _check_keys(name: str, table: Any, section: _Section) -> dict[str, Any]:
-    if not isinstance(table, dict):
-        raise _err(name, None, f"must be a table ([{name}]), got {_kind(table)}")
-    for key in table:
-        if key not in section.keys:
-            hint = difflib.get_close_matches(key, section.keys, n=1)
-            tip = f"; did you mean {hint[0]!r}?" if hint else ""
-            raise _err(name, key, f"unknown key (expected one of {', '.join(section.keys)}){tip}")
-    return table
 
 
 def _section(data: dict[str, Any], name: str) -> dict[str, Any]:
@@ -186,13 +91,7 @@ def _section(data: dict[str, Any], name: str) -> dict[str, Any]:
         if section.required:
             raise ConfigError(f"config: [{name}]: missing section ({section.required})")
         return {}
-    return _check_keys(name, data[name], section)
-
-
-def _require(section: str, table: dict[str, Any], key: str, why: str = "") -> Any:
-    if key not in table:
-        raise _err(section, key, "missing" + (f" ({why})" if why else ""))
-    return table[key]
+    return check_keys(name, data[name], section)
 
 
 # [system]
@@ -202,37 +101,41 @@ _MATRIX_KEYS = ("A", "C", "Q", "R")
 
 def _system_matrices(table: dict[str, Any]) -> dict[str, np.ndarray]:
     """A, C, Q and R, each read and checked against the others' shapes."""
-    mats = {k: _matrix("system", k, _require("system", table, k)) for k in _MATRIX_KEYS}
-    n = mats["A"].shape[0]
-    if mats["A"].shape != (n, n):
-        raise _err("system", "A", f"must be square, found shape {mats['A'].shape}")
-    if mats["C"].shape[1] != n:
-        raise _err("system", "C", f"must have {n} columns (A is {n}x{n}), found shape {mats['C'].shape}")
-    m = mats["C"].shape[0]
-    if mats["Q"].shape != (n, n):
-        raise _err("system", "Q", f"must be {n}x{n} like A, found shape {mats['Q'].shape}")
-    if mats["R"].shape != (m, m):
-        raise _err("system", "R", f"must be {m}x{m} (C has {m} rows), found shape {mats['R'].shape}")
-    return mats
+    matrices = {k: read_matrix("system", k, require("system", table, k)) for k in _MATRIX_KEYS}
+    n = matrices["A"].shape[0]
+    if matrices["A"].shape != (n, n):
+        raise config_error("system", "A", f"must be square, found shape {matrices['A'].shape}")
+    if matrices["C"].shape[1] != n:
+        raise config_error(
+            "system", "C", f"must have {n} columns (A is {n}x{n}), found shape {matrices['C'].shape}"
+        )
+    m = matrices["C"].shape[0]
+    if matrices["Q"].shape != (n, n):
+        raise config_error("system", "Q", f"must be {n}x{n} like A, found shape {matrices['Q'].shape}")
+    if matrices["R"].shape != (m, m):
+        raise config_error(
+            "system", "R", f"must be {m}x{m} (C has {m} rows), found shape {matrices['R'].shape}"
+        )
+    return matrices
 
 
 def _lam(table: dict[str, Any]) -> float:
-    lam = _real("system", "lam", _require("system", table, "lam", "arrival probability at low power"))
+    lam = read_real("system", "lam", require("system", table, "lam", "arrival probability at low power"))
     if not 0 < lam < 1:
-        raise _err("system", "lam", f"must lie in (0, 1), got {lam}")
+        raise config_error("system", "lam", f"must lie in (0, 1), got {lam}")
     return lam
 
 
-def _linear_system(mats: dict[str, np.ndarray]) -> LinearSystem:
+def _linear_system(matrices: dict[str, np.ndarray]) -> LinearSystem:
     try:
-        return LinearSystem(*(mats[k] for k in _MATRIX_KEYS))
+        return LinearSystem(*(matrices[k] for k in _MATRIX_KEYS))
     except (TypeError, ValueError) as exc:
         # Q not PSD, R not PD, (A, C) not detectable, ...: name the key if the message does.
         msg = str(exc)
         key = next((k for k in ("(A, C)", *_MATRIX_KEYS) if msg.startswith((k + " ", k + ":"))), None)
         if key is None:
-            raise _err("system", None, msg) from None
-        raise _err("system", key.strip("()"), _strip_name(msg, key)) from None
+            raise config_error("system", None, msg) from None
+        raise config_error("system", key.strip("()"), strip_name(msg, key)) from None
 
 
 # [energy]
@@ -244,23 +147,23 @@ def _energy_ratio(table: dict[str, Any]) -> Fraction:
     """The budget p/q, given as ``ratio`` or as the three energies."""
     given = [k for k in _ENERGIES if k in table]
     if "ratio" in table and given:
-        raise _err("energy", given[0], "give either ratio or Psi, Delta, delta, not both")
+        raise config_error("energy", given[0], "give either ratio or Psi, Delta, delta, not both")
     if "ratio" in table:
-        ratio = _fraction("energy", "ratio", table["ratio"])
+        ratio = read_fraction("energy", "ratio", table["ratio"])
         try:
             return as_ratio("ratio", ratio)
         except ValueError as exc:
-            raise _err("energy", "ratio", _strip_name(str(exc), "ratio")) from None
+            raise config_error("energy", "ratio", strip_name(str(exc), "ratio")) from None
     if not given:
-        raise _err("energy", "ratio", 'missing (give ratio = "p/q", or Psi, Delta, delta)')
+        raise config_error("energy", "ratio", 'missing (give ratio = "p/q", or Psi, Delta, delta)')
     energies = {
-        k: _fraction("energy", k, _require("energy", table, k, "Psi, Delta and delta go together"))
+        k: read_fraction("energy", k, require("energy", table, k, "Psi, Delta and delta go together"))
         for k in _ENERGIES
     }
     try:
         return energy_ratio(energies["Psi"], energies["Delta"], energies["delta"])
     except ValueError as exc:
-        raise _err("energy", None, str(exc)) from None
+        raise config_error("energy", None, str(exc)) from None
 
 
 # [online]
@@ -270,19 +173,21 @@ def _online(table: dict[str, Any], lam: float, ratio: Fraction) -> tuple[OnlineD
     """``(z0, mu)`` and whether it is ``design_online``'s (``mu`` defaults to 1 with ``z0``)."""
     design = table.get("design", "z0" not in table and "mu" not in table)
     if not isinstance(design, bool):
-        raise _err("online", "design", f"must be true or false, got {_kind(design)} {design!r}")
+        raise config_error("online", "design", f"must be true or false, got {toml_kind(design)} {design!r}")
     if design:
         for k in ("z0", "mu"):
             if k in table:
-                raise _err("online", k, "cannot be given with design = true (the design fixes z0 and mu)")
+                raise config_error(
+                    "online", k, "cannot be given with design = true (the design fixes z0 and mu)"
+                )
         try:
             return design_online(lam, ratio), True
         except ValueError as exc:
-            raise _err("energy", "ratio", str(exc)) from None
-    z0 = _int("online", "z0", _require("online", table, "z0", "or set design = true"), 1)
-    mu = _real("online", "mu", table.get("mu", 1.0))
+            raise config_error("energy", "ratio", str(exc)) from None
+    z0 = read_int("online", "z0", require("online", table, "z0", "or set design = true"), 1)
+    mu = read_real("online", "mu", table.get("mu", 1.0))
     if not 0 <= mu <= 1:
-        raise _err("online", "mu", f"must lie in [0, 1], got {mu}")
+        raise config_error("online", "mu", f"must lie in [0, 1], got {mu}")
     return OnlineDesign(z0, mu), False
 
 
@@ -297,18 +202,22 @@ def _attacks(table: dict[str, Any]) -> tuple[PeriodicBlocking, ...]:
         return ()
     betas = table["betas"]
     if not isinstance(betas, list):
-        raise _err("attack", "betas", f'must be an array such as ["1/5", "2/3"], got {_kind(betas)}')
+        raise config_error(
+            "attack", "betas", f'must be an array such as ["1/5", "2/3"], got {toml_kind(betas)}'
+        )
     attacks: list[PeriodicBlocking] = []
     for i, value in enumerate(betas):
         key = f"betas[{i}]"
         try:
             attack = as_attack(value, "beta")
         except TypeError:
-            raise _err("attack", key, f"must be a fraction 'r/t' or a number, got {_kind(value)}") from None
+            raise config_error(
+                "attack", key, f"must be a fraction 'r/t' or a number, got {toml_kind(value)}"
+            ) from None
         except ValueError as exc:
-            raise _err("attack", key, _strip_name(str(exc), "beta")) from None
+            raise config_error("attack", key, strip_name(str(exc), "beta")) from None
         if attack in attacks:
-            raise _err("attack", key, f"{attack.label} is listed twice")
+            raise config_error("attack", key, f"{attack.label} is listed twice")
         attacks.append(attack)
     return tuple(attacks)
 
@@ -317,11 +226,11 @@ def _sweep_t_max(table: dict[str, Any]) -> int | None:
     """``[attack.sweep] t_max``, or None (no sweep)."""
     if "sweep" not in table:
         return None
-    sweep = _check_keys("attack.sweep", table["sweep"], _SWEEP_SECTION)
-    t_max = _int("attack.sweep", "t_max", _require("attack.sweep", sweep, "t_max"), 2)
+    sweep = check_keys("attack.sweep", table["sweep"], _SWEEP_SECTION)
+    t_max = read_int("attack.sweep", "t_max", require("attack.sweep", sweep, "t_max"), 2)
     if t_max > _MAX_SWEEP_T:
         problem = f"must be at most {_MAX_SWEEP_T} (about 3e9 fractions), got {t_max}"
-        raise _err("attack.sweep", "t_max", problem)
+        raise config_error("attack.sweep", "t_max", problem)
     return t_max
 
 
@@ -341,11 +250,11 @@ class MonteCarloConfig:
 
 #: How each ``[montecarlo]`` key is read.
 _MONTECARLO_READERS: dict[str, Callable[[str, str, Any], Any]] = {
-    "runs": partial(_int, minimum=2),
-    "horizon": partial(_int, minimum=1),
-    "seed": partial(_int, minimum=0),
-    "mode": partial(_choice, allowed=MODES),
-    "protocol": partial(_choice, allowed=PROTOCOLS),
+    "runs": partial(read_int, minimum=2),
+    "horizon": partial(read_int, minimum=1),
+    "seed": partial(read_int, minimum=0),
+    "mode": partial(read_choice, allowed=MODES),
+    "protocol": partial(read_choice, allowed=PROTOCOLS),
 }
 
 
@@ -419,9 +328,9 @@ def parse_config(data: dict[str, Any], source: str = "<string>") -> Config:
     """
     _check_sections(data)
     system_table = _section(data, "system")
-    mats = _system_matrices(system_table)
+    matrices = _system_matrices(system_table)
     lam = _lam(system_table)
-    system = _linear_system(mats)
+    system = _linear_system(matrices)
     ratio = _energy_ratio(_section(data, "energy"))
     online, designed = _online(_section(data, "online"), lam, ratio)
     attack_table = _section(data, "attack")
