@@ -173,7 +173,7 @@ def test_keyboard_interrupt_exits_130(capsys, monkeypatch):
     def boom(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "analyse", boom)
+    monkeypatch.setattr(cli.reproduce, "analyse", boom)
     rc, out, err = run(capsys, "reproduce", "--runs", 0, "--no-figures")
     assert rc == 130 and err.strip() == "fakeack: interrupted"
 

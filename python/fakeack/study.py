@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 
-from ._cli_io import _frac
 from .attack import j_attack
 from .attacks import PeriodicBlocking
 from .config import MonteCarloConfig
@@ -124,7 +123,6 @@ class Analysis:
     attacks: tuple[PeriodicBlocking, ...]
     horizon: int
     mc: MonteCarloConfig | None
-    mc_note: str | None
     rows: list[Row]
     curves: list[Curve]
     j_off: float
@@ -182,9 +180,10 @@ def _custom_threshold(
     return sw, BetaBar(finite, limit, t_max, joff, jon, jmx, z0, mu)
 
 
-def _run_mc(
+def run_monte_carlo(
     s: LinearSystem, lam: float, sched: Any, mc: MonteCarloConfig, attack: PeriodicBlocking | None
 ) -> SimulationResult:
+    """:func:`fakeack.simulate` with the settings of ``mc``."""
     return simulate(
         s,
         lam,
@@ -192,10 +191,115 @@ def _run_mc(
         horizon=mc.horizon,
         runs=mc.runs,
         seed=mc.seed,
-        attack=None if attack is None else (attack.r, attack.t),
+        attack=_pair(attack),
         mode=mc.mode,
         protocol=mc.protocol,
     )
+
+
+def _pair(attack: PeriodicBlocking | None) -> tuple[int, int] | None:
+    """``(r, t)``, the form :mod:`fakeack.montecarlo` takes."""
+    return None if attack is None else (attack.r, attack.t)
+
+
+@dataclass(frozen=True)
+class _Case:
+    """One schedule of the study: a table row and a J_k curve."""
+
+    key: str
+    label: str
+    curve_label: str
+    schedule: OfflineSchedule | OnlineSchedule
+    attack: PeriodicBlocking | None
+    stationary: float
+
+
+def _cases(
+    s: LinearSystem, lam: float, ratio: Fraction, online: OnlineDesign, attacks: Sequence[PeriodicBlocking]
+) -> list[_Case]:
+    """Offline, online without attack, then online under each attack."""
+    z0, mu = online
+    on = OnlineSchedule(z0, mu)
+    cases = [
+        _Case("j_offline", "J_offline", "offline", OfflineSchedule(ratio), None, j_offline(s, lam, ratio)),
+        _Case("j_online", "J_online", "online, no attack", on, None, j_online(s, lam, z0, mu)),
+    ]
+    for a in attacks:
+        cases.append(
+            _Case(
+                f"j_attack_{a.label}",
+                f"J_attack beta={a.label}",
+                f"online, attack $\\beta$ = {a.label}",
+                on,
+                a,
+                j_attack(s, lam, z0, a.r, a.t, mu),
+            )
+        )
+    return cases
+
+
+def _evaluate(
+    case: _Case, s: LinearSystem, lam: float, horizon: int, mc: MonteCarloConfig | None, paper: dict[str, str]
+) -> tuple[Row, Curve]:
+    """The case's stationary, exact finite-horizon and (if ``mc``) Monte Carlo cost."""
+    exact = expected_trace_curve(s, lam, case.schedule, horizon, _pair(case.attack)).j_k
+    row = Row(
+        case.key,
+        case.label,
+        analytic=case.stationary,
+        exact_h=float(exact[-1]),
+        mc_text="skipped" if mc is None else "-",
+        paper=paper.get(case.key, "-"),
+    )
+    mc_curve = None
+    if mc is not None:
+        res = run_monte_carlo(s, lam, case.schedule, mc, case.attack)
+        row.mc, row.mc_stderr, mc_curve = res.j, res.stderr, res.j_k
+    return row, Curve(case.curve_label, exact, mc_curve, case.stationary)
+
+
+def _threshold_rows(bar: BetaBar, paper: dict[str, str]) -> list[Row]:
+    """Both beta-bar rows (no Monte Carlo of a threshold)."""
+    fin, t_max = bar.finite, bar.t_max
+    return [
+        Row(
+            "beta_bar_limit",
+            "beta-bar (large-period limit)",
+            analytic=bar.limit,
+            mc_text="n/a",
+            paper=paper.get("beta_bar_limit", "-"),
+        ),
+        Row(
+            "beta_bar_finite",
+            f"beta-bar (t<={t_max})",
+            analytic=None if fin is None else float(fin),
+            analytic_text=f"none with t<={t_max}" if fin is None else f"{fin} = {float(fin):.6f}",
+            mc_text="n/a",
+            paper=paper.get("beta_bar_finite", "-"),
+        ),
+    ]
+
+
+def _decisions(
+    s: LinearSystem, lam: float, online: OnlineDesign, attacks: Sequence[PeriodicBlocking], j_off: float
+) -> list[dict[str, Any]]:
+    """For each attack: the schedule to use against it, and against the worst attack of its budget."""
+    z0, mu = online
+    decisions = []
+    for a in attacks:
+        ja = j_attack(s, lam, z0, a.r, a.t, mu)
+        jl = j_attack_limit(s, lam, z0, a.beta, mu)
+        decisions.append(
+            {
+                "attack": a.label,
+                "beta": float(a.beta),
+                "j_attack": ja,
+                "j_attack_limit": jl,
+                "choice_against_pattern": "online" if ja < j_off else "offline",
+                "choice_against_worst_case": "online" if jl < j_off else "offline",
+            }
+        )
+    return decisions
 
 
 def analyse(
@@ -243,44 +347,18 @@ def analyse(
     start = time.perf_counter()
     paper = paper or {}
     z0, mu = online
-    mc_note = None
     H = mc.horizon if mc is not None else horizon
-    off, on = OfflineSchedule(ratio), OnlineSchedule(z0, mu)
-    j_off, j_on, jmx = j_offline(s, lam, ratio), j_online(s, lam, z0, mu), j_max(s, lam)
-
-    specs: list[tuple[str, str, Any, PeriodicBlocking | None, float]] = [
-        ("j_offline", "J_offline", off, None, j_off),
-        ("j_online", "J_online", on, None, j_on),
-    ]
-    for a in attacks:
-        specs.append(
-            (f"j_attack_{a.label}", f"J_attack beta={a.label}", on, a, j_attack(s, lam, z0, a.r, a.t, mu))
-        )
-
+    cases = _cases(s, lam, ratio, online, attacks)
+    j_off, j_on, jmx = cases[0].stationary, cases[1].stationary, j_max(s, lam)
     rows: list[Row] = []
     curves: list[Curve] = []
-    for key, label, sched, a, stat in specs:
-        atk = None if a is None else (a.r, a.t)
-        exact = expected_trace_curve(s, lam, sched, H, atk).j_k
-        row = Row(key, label, analytic=stat, exact_h=float(exact[-1]), paper=paper.get(key, "-"))
-        res = None
-        if mc is not None:
-            res = _run_mc(s, lam, sched, mc, a)
-            row.mc, row.mc_stderr = res.j, res.stderr
+    for case in cases:
+        row, curve = _evaluate(case, s, lam, H, mc, paper)
         rows.append(row)
-        name = "offline" if a is None and sched is off else "online, no attack"
-        if a is not None:
-            name = f"online, attack $\\beta$ = {a.label}"
-        curves.append(Curve(name, exact, None if res is None else res.j_k, stat))
+        curves.append(curve)
+    exact_j_max = float(_exact_j_max_curve(s, lam, H)[-1])
     rows.append(
-        Row(
-            "j_max",
-            "J_max (all blocked)",
-            analytic=jmx,
-            exact_h=float(_exact_j_max_curve(s, lam, H)[-1]),
-            mc_text="-",
-            paper=paper.get("j_max", "-"),
-        )
+        Row("j_max", "J_max (all blocked)", analytic=jmx, exact_h=exact_j_max, paper=paper.get("j_max", "-"))
     )
 
     sweep = bar = None
@@ -289,64 +367,23 @@ def analyse(
             sweep, bar = beta_sweep(s, lam, ratio, t_max), beta_bar(s, lam, ratio, t_max)
         else:
             sweep, bar = _custom_threshold(s, lam, ratio, z0, mu, t_max)
-        rows.append(
-            Row(
-                "beta_bar_limit",
-                "beta-bar (large-period limit)",
-                analytic=bar.limit,
-                mc_text="n/a",
-                paper=paper.get("beta_bar_limit", "-"),
-            )
-        )
-        fin = bar.finite
-        rows.append(
-            Row(
-                "beta_bar_finite",
-                f"beta-bar (t<={t_max})",
-                analytic=None if fin is None else float(fin),
-                analytic_text=f"none with t<={t_max}" if fin is None else f"{_frac(fin)} = {float(fin):.6f}",
-                mc_text="n/a",
-                paper=paper.get("beta_bar_finite", "-"),
-            )
-        )
-
-    decisions = []
-    for a in attacks:
-        ja = j_attack(s, lam, z0, a.r, a.t, mu)
-        jl = j_attack_limit(s, lam, z0, a.beta, mu)
-        decisions.append(
-            {
-                "attack": a.label,
-                "beta": float(a.beta),
-                "j_attack": ja,
-                "j_attack_limit": jl,
-                "choice_against_pattern": "online" if ja < j_off else "offline",
-                "choice_against_worst_case": "online" if jl < j_off else "offline",
-            }
-        )
-    for r in rows:
-        if r.mc is None and r.key.startswith("j_") and r.key != "j_max" and mc is None:
-            r.mc_text = "skipped"
+        rows += _threshold_rows(bar, paper)
     return Analysis(
-        s,
-        lam,
-        ratio,
-        online,
-        designed,
-        tuple(attacks),
-        H,
-        mc,
-        mc_note,
-        rows,
-        curves,
-        j_off,
-        j_on,
-        jmx,
-        sweep,
-        bar,
-        decisions,
-        time.perf_counter() - start,
+        system=s,
+        lam=lam,
+        ratio=ratio,
+        online=online,
+        designed=designed,
+        attacks=tuple(attacks),
+        horizon=H,
+        mc=mc,
+        rows=rows,
+        curves=curves,
+        j_off=j_off,
+        j_on=j_on,
+        j_max=jmx,
+        sweep=sweep,
+        bar=bar,
+        decisions=_decisions(s, lam, online, attacks, j_off),
+        elapsed=time.perf_counter() - start,
     )
-
-
-# ------------------------------------------------------------------------------- formatting
