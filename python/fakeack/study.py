@@ -253,14 +253,14 @@ def _evaluate(
     )
     mc_curve = None
     if mc is not None:
-        res = run_monte_carlo(s, lam, case.schedule, mc, case.attack)
-        row.mc, row.mc_stderr, mc_curve = res.j, res.stderr, res.j_k
+        result = run_monte_carlo(s, lam, case.schedule, mc, case.attack)
+        row.mc, row.mc_stderr, mc_curve = result.j, result.stderr, result.j_k
     return row, Curve(case.curve_label, exact, mc_curve, case.stationary)
 
 
 def _threshold_rows(bar: BetaBar, paper: dict[str, str]) -> list[Row]:
     """Both beta-bar rows (no Monte Carlo of a threshold)."""
-    fin, t_max = bar.finite, bar.t_max
+    finite, t_max = bar.finite, bar.t_max
     return [
         Row(
             "beta_bar_limit",
@@ -272,8 +272,8 @@ def _threshold_rows(bar: BetaBar, paper: dict[str, str]) -> list[Row]:
         Row(
             "beta_bar_finite",
             f"beta-bar (t<={t_max})",
-            analytic=None if fin is None else float(fin),
-            analytic_text=f"none with t<={t_max}" if fin is None else f"{fin} = {float(fin):.6f}",
+            analytic=None if finite is None else float(finite),
+            analytic_text=f"none with t<={t_max}" if finite is None else f"{finite} = {float(finite):.6f}",
             mc_text="n/a",
             paper=paper.get("beta_bar_finite", "-"),
         ),
@@ -287,16 +287,16 @@ def _decisions(
     z0, mu = online
     decisions = []
     for a in attacks:
-        ja = j_attack(s, lam, z0, a.r, a.t, mu)
-        jl = j_attack_limit(s, lam, z0, a.beta, mu)
+        j_pattern = j_attack(s, lam, z0, a.r, a.t, mu)
+        j_worst = j_attack_limit(s, lam, z0, a.beta, mu)
         decisions.append(
             {
                 "attack": a.label,
                 "beta": float(a.beta),
-                "j_attack": ja,
-                "j_attack_limit": jl,
-                "choice_against_pattern": "online" if ja < j_off else "offline",
-                "choice_against_worst_case": "online" if jl < j_off else "offline",
+                "j_attack": j_pattern,
+                "j_attack_limit": j_worst,
+                "choice_against_pattern": "online" if j_pattern < j_off else "offline",
+                "choice_against_worst_case": "online" if j_worst < j_off else "offline",
             }
         )
     return decisions
@@ -349,7 +349,7 @@ def analyse(
     z0, mu = online
     H = mc.horizon if mc is not None else horizon
     cases = _cases(s, lam, ratio, online, attacks)
-    j_off, j_on, jmx = cases[0].stationary, cases[1].stationary, j_max(s, lam)
+    j_off, j_on, j_all_blocked = cases[0].stationary, cases[1].stationary, j_max(s, lam)
     rows: list[Row] = []
     curves: list[Curve] = []
     for case in cases:
@@ -358,7 +358,13 @@ def analyse(
         curves.append(curve)
     exact_j_max = float(_exact_j_max_curve(s, lam, H)[-1])
     rows.append(
-        Row("j_max", "J_max (all blocked)", analytic=jmx, exact_h=exact_j_max, paper=paper.get("j_max", "-"))
+        Row(
+            "j_max",
+            "J_max (all blocked)",
+            analytic=j_all_blocked,
+            exact_h=exact_j_max,
+            paper=paper.get("j_max", "-"),
+        )
     )
 
     sweep = bar = None
@@ -381,7 +387,7 @@ def analyse(
         curves=curves,
         j_off=j_off,
         j_on=j_on,
-        j_max=jmx,
+        j_max=j_all_blocked,
         sweep=sweep,
         bar=bar,
         decisions=_decisions(s, lam, online, attacks, j_off),

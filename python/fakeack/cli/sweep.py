@@ -50,17 +50,17 @@ def _compute(inputs: SystemInputs, t_max: int) -> _Result:
     s, lam, ratio, cfg = inputs.system, inputs.lam, inputs.ratio, inputs.config
     if cfg is not None and not cfg.designed:
         z0, mu = cfg.online
-        sw, bar = _custom_threshold(s, lam, ratio, z0, mu, t_max)
+        sweep, bar = _custom_threshold(s, lam, ratio, z0, mu, t_max)
         designed = False
     else:
-        sw, bar = beta_sweep(s, lam, ratio, t_max), beta_bar(s, lam, ratio, t_max)
-        z0, mu, designed = sw.z0, sw.mu, True
+        sweep, bar = beta_sweep(s, lam, ratio, t_max), beta_bar(s, lam, ratio, t_max)
+        z0, mu, designed = sweep.z0, sweep.mu, True
     points = []
-    for r, t, beta, j in zip(sw.r, sw.t, sw.beta, sw.j_attack, strict=True):
+    for r, t, beta, j in zip(sweep.r, sweep.t, sweep.beta, sweep.j_attack, strict=True):
         limit = j_attack_limit(s, lam, z0, Fraction(int(r), int(t)), mu)
-        better = "online" if j < sw.j_offline else "offline"
+        better = "online" if j < sweep.j_offline else "offline"
         points.append(_Point(int(r), int(t), float(beta), float(j), float(limit), better))
-    return _Result(inputs, t_max, z0, mu, designed, sw, bar, points)
+    return _Result(inputs, t_max, z0, mu, designed, sweep, bar, points)
 
 
 def _csv(result: _Result) -> str:
@@ -73,7 +73,7 @@ def _csv(result: _Result) -> str:
 
 
 def _summary(result: _Result) -> dict[str, Any]:
-    sw, bar, finite = result.sweep, result.bar, result.bar.finite
+    sweep, bar, finite = result.sweep, result.bar, result.bar.finite
     return {
         "system": system_text(result.inputs.system),
         "lam": result.inputs.lam,
@@ -82,9 +82,9 @@ def _summary(result: _Result) -> dict[str, Any]:
         "mu": result.mu,
         "designed": result.designed,
         "t_max": result.t_max,
-        "count": len(sw),
-        "j_offline": sw.j_offline,
-        "j_online": sw.j_online,
+        "count": len(sweep),
+        "j_offline": sweep.j_offline,
+        "j_online": sweep.j_online,
         "j_max": bar.j_max,
         "beta_bar": {
             "finite": None if finite is None else str(finite),
@@ -100,16 +100,17 @@ def _json(result: _Result) -> str:
 
 
 def _table(result: _Result) -> str:
-    sw, bar, lam, ratio = result.sweep, result.bar, result.inputs.lam, result.inputs.ratio
+    sweep, bar, lam, ratio = result.sweep, result.bar, result.inputs.lam, result.inputs.ratio
     finite = "none" if bar.finite is None else f"{bar.finite} = {float(bar.finite):.6f}"
     lines = [
         f"fakeack sweep: {system_text(result.inputs.system)}; lam={lam:g}; energy ratio {ratio}; "
         f"online z0={result.z0}, mu={result.mu:.6g}",
-        f"J_offline = {sw.j_offline:.6f}   J_online = {sw.j_online:.6f}   J_max = {format_number(bar.j_max)}",
+        f"J_offline = {sweep.j_offline:.6f}   J_online = {sweep.j_online:.6f}   "
+        f"J_max = {format_number(bar.j_max)}",
         f"beta-bar: t<={result.t_max}: {finite}; large-period limit: {bar.limit:.6f}",
         *paragraph(
-            f"{len(sw)} attacks r/t in lowest terms with t <= {result.t_max}, by increasing beta (J_inf: the "
-            "worst attack with the same budget; better: the schedule to use against r/t)"
+            f"{len(sweep)} attacks r/t in lowest terms with t <= {result.t_max}, by increasing beta "
+            "(J_inf: the worst attack with the same budget; better: the schedule to use against r/t)"
         ),
         "",
         f"{'r':>5} {'t':>5} {'beta':>9} {'J_attack':>11} {'J_inf(beta)':>12}  better",
