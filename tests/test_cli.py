@@ -101,7 +101,7 @@ def test_reproduce_table_without_mc(capsys):
     assert f"{exact:.6f}" in out
     flat = " ".join(out.split())
     assert "not with the stationary value" not in flat  # that footnote is for runs with MC
-    assert "note: the paper prints J_online = 1.6399" in flat and "ERRATA 2" in flat and "ERRATA 7" in flat
+    assert "note: the paper prints J_online = 1.6399" in flat and "Model note 2" in flat and "Model note 7" in flat
 
 
 def test_reproduce_json(capsys):

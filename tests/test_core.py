@@ -229,7 +229,7 @@ def test_j_max_vector():
 def test_chain_paper_example():
     lam = 0.37
     l, a = lam, 1 - lam
-    Ts = np.array([  # the paper's column-stochastic matrix with ERRATA item 4 applied
+    Ts = np.array([  # the paper's column-stochastic matrix with Model note 4 applied
         [l, l, 0, 0, 0, 0, 0, 0, 0, 0, 1],
         [a, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
         [0, a, 0, 0, 0, 0, 0, 0, 0, 0, 0],

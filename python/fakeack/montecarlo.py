@@ -81,7 +81,7 @@ class OnlineSchedule:
 class AttackPattern:
     """A periodic blocking mask over the attacker's flag counter (1 = block that flag-ACK).
 
-    ``AttackPattern.first(r, t)`` is the paper's Algorithm 1 (ERRATA item 3: blocks r of t).
+    ``AttackPattern.first(r, t)`` is the paper's Algorithm 1 (Model note 3: blocks r of t).
     """
 
     mask: tuple[bool, ...]

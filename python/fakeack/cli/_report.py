@@ -215,9 +215,10 @@ def j_online_note(analysis: Analysis) -> str:
         )
     return (
         f"note: the paper prints J_online = {printed}; the corrected model gives {analysis.j_on:.6f}"
-        " (ERRATA 2: here mu = 1, so J_on = lam/(1-a^(z0+1)) sum_(i<=z0) a^i tr_i, a = 1-lam)."
+        " (Model note 2: here mu = 1, so J_on = lam/(1-a^(z0+1)) sum_(i<=z0) a^i tr_i, a = 1-lam)."
         + mc
-        + " ERRATA 7: the printed Sec. V numbers are finite Monte Carlo values and one of them is misprinted."
+        + " Model note 7: the printed Sec. V numbers are finite Monte Carlo values and one of them is"
+        " misprinted."
         + typo
         + " Nothing here is tuned to the printed values."
     )

@@ -38,7 +38,7 @@ __all__ = ["run"]
 _PAPER_NOTE = (
     "paper: the values printed in Sec. V (a 100000-run Monte Carlo of unstated horizon; '-' = not "
     "printed). Its beta-bar ~0.28 is read off a figure and rests on a definition it does not give "
-    "(ERRATA 7)."
+    "(Model note 7)."
 )
 
 
@@ -85,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
         document = {
             "command": "reproduce",
             **analysis_json(analysis),
-            "paper": {**PAPER_PRINTED, "source": "Sec. V, 100000-run Monte Carlo (ERRATA 7)"},
+            "paper": {**PAPER_PRINTED, "source": "Sec. V, 100000-run Monte Carlo (Model note 7)"},
             "notes": [j_online_note(analysis)],
             "figures": figures,
         }
