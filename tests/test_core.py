@@ -1,4 +1,4 @@
-"""Issue 2: the analytic core, each formula against an independent derivation (tests/reference.py)."""
+"""The analytic core, each formula against an independent derivation (tests/reference.py)."""
 
 import math
 from fractions import Fraction
