@@ -245,11 +245,11 @@ def _sweep_points(fig: Figure, ax: Axes, beta: np.ndarray, j: np.ndarray, t: np.
     from matplotlib.lines import Line2D
 
     t_max = int(t.max()) if len(t) else 0
-    sc = ax.scatter(beta, j, c=t, s=5, cmap="viridis", lw=0, zorder=3)
-    cb = fig.colorbar(sc, ax=ax, pad=0.01)
-    cb.set_label("attack period $t$ (flag-ACKs)")
+    scatter = ax.scatter(beta, j, c=t, s=5, cmap="viridis", lw=0, zorder=3)
+    colorbar = fig.colorbar(scatter, ax=ax, pad=0.01)
+    colorbar.set_label("attack period $t$ (flag-ACKs)")
     label = rf"$J(\tilde\theta_\mathrm{{on}})$, attack $r/t$ with $t \leq {t_max}$"
-    return [Line2D([], [], ls="none", marker="o", ms=4, color=sc.cmap(0.45), label=label)]
+    return [Line2D([], [], ls="none", marker="o", ms=4, color=scatter.cmap(0.45), label=label)]
 
 
 def _cost_lines(ax: Axes, sweep: BetaSweep) -> list[Any]:
@@ -291,14 +291,15 @@ def _threshold_marks(ax: Axes, bar: BetaBar, sweep: BetaSweep, j: np.ndarray) ->
         ha="left",
         va="bottom",
     )
-    fb = bar.finite
-    if fb is None:
+    finite = bar.finite
+    if finite is None:
         return handles
-    sel = (np.asarray(sweep.r) == fb.numerator) & (np.asarray(sweep.t) == fb.denominator)
-    if sel.any():
+    match = (np.asarray(sweep.r) == finite.numerator) & (np.asarray(sweep.t) == finite.denominator)
+    if match.any():
+        label = rf"$\bar\beta$ ($t \leq {bar.t_max}$) = {finite} = {float(finite):.4f}"
         handles += ax.plot(
-            float(fb),
-            float(j[sel][0]),
+            float(finite),
+            float(j[match][0]),
             marker="*",
             ms=12,
             color="#CC79A7",
@@ -306,7 +307,7 @@ def _threshold_marks(ax: Axes, bar: BetaBar, sweep: BetaSweep, j: np.ndarray) ->
             mew=0.6,
             ls="none",
             zorder=5,
-            label=rf"$\bar\beta$ ($t \leq {bar.t_max}$) = {fb.numerator}/{fb.denominator} = {float(fb):.4f}",
+            label=label,
         )
     return handles
 

@@ -45,15 +45,19 @@ class _Formatter(argparse.ArgumentDefaultsHelpFormatter):
         return super()._get_help_string(action)
 
 
-def _add_system_flags(p: argparse.ArgumentParser) -> None:
-    g = p.add_argument_group("system (default: the paper's A=1.2, C=0.7, Q=R=0.8, lam=0.5, ratio 1/7)")
+def _add_system_flags(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_argument_group(
+        "system (default: the paper's A=1.2, C=0.7, Q=R=0.8, lam=0.5, ratio 1/7)"
+    )
     for k in "ACQR":
-        g.add_argument(f"--{k}", type=float, default=None, metavar="X", help=f"scalar {k}")
-    g.add_argument("--lam", type=float, default=None, metavar="P", help="arrival probability at low power")
-    g.add_argument(
+        group.add_argument(f"--{k}", type=float, default=None, metavar="X", help=f"scalar {k}")
+    group.add_argument(
+        "--lam", type=float, default=None, metavar="P", help="arrival probability at low power"
+    )
+    group.add_argument(
         "--ratio", default=None, metavar="P/Q", help="energy ratio (Psi-delta)/(Delta-delta), e.g. 1/7"
     )
-    g.add_argument(
+    group.add_argument(
         "--config",
         metavar="FILE",
         help="take the system, lam and ratio (and the online schedule) "
@@ -61,15 +65,15 @@ def _add_system_flags(p: argparse.ArgumentParser) -> None:
     )
 
 
-def _add_format_flags(p: argparse.ArgumentParser) -> None:
-    g = p.add_mutually_exclusive_group()
-    g.add_argument("--json", action="store_true", help="JSON instead of the table")
-    g.add_argument("--csv", action="store_true", help="CSV instead of the table")
-    p.add_argument("--out", metavar="FILE", help="write to FILE (atomically) instead of stdout")
+def _add_format_flags(parser: argparse.ArgumentParser) -> None:
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--json", action="store_true", help="JSON instead of the table")
+    group.add_argument("--csv", action="store_true", help="CSV instead of the table")
+    parser.add_argument("--out", metavar="FILE", help="write to FILE (atomically) instead of stdout")
 
 
 def _add_reproduce(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
+    parser = sub.add_parser(
         "reproduce",
         formatter_class=_Formatter,
         help="reproduce the paper's Sec. V (table and figures)",
@@ -80,117 +84,119 @@ def _add_reproduce(sub: argparse._SubParsersAction) -> None:
         "of the 4 simulated schedules (8e7 steps); the whole command, figures included, takes a few "
         "seconds on 2 cores.",
     )
-    p.add_argument("--out", default=DEFAULT_OUT, metavar="DIR", help="directory for the figures")
-    p.add_argument(
+    parser.add_argument("--out", default=DEFAULT_OUT, metavar="DIR", help="directory for the figures")
+    parser.add_argument(
         "--runs",
         type=_runs,
         default=DEFAULT_RUNS,
         metavar="N",
         help="Monte Carlo runs per schedule (0 skips the Monte Carlo)",
     )
-    p.add_argument(
+    parser.add_argument(
         "--seed",
         type=_int_at_least(0),
         default=DEFAULT_SEED,
         metavar="S",
         help="Monte Carlo seed (the same for every schedule)",
     )
-    p.add_argument(
+    parser.add_argument(
         "--horizon",
         type=_int_at_least(1),
         default=DEFAULT_HORIZON,
         metavar="H",
         help="steps per run (and of the exact finite-horizon J_H)",
     )
-    p.add_argument(
+    parser.add_argument(
         "--t-max",
         type=_int_at_least(2),
         default=DEFAULT_T_MAX,
         metavar="T",
         help="largest attack period t of the beta sweep and the finite beta-bar",
     )
-    p.add_argument("--no-figures", action="store_true", help="do not draw figures")
-    p.add_argument("--json", action="store_true", help="print JSON instead of the table")
-    p.set_defaults(func=reproduce.run)
+    parser.add_argument("--no-figures", action="store_true", help="do not draw figures")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of the table")
+    parser.set_defaults(func=reproduce.run)
 
 
 def _add_analyze(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
+    parser = sub.add_parser(
         "analyze",
         formatter_class=_Formatter,
         help="analyze a system described by a TOML config",
         description="Costs, Monte Carlo, beta sweep and thresholds for the system in CONFIG.toml. "
         "'fakeack analyze --example' prints a commented config (the paper's system) to start from.",
     )
-    p.add_argument(
+    parser.add_argument(
         "config", nargs="?", metavar="CONFIG.toml", help="the config file ('-' reads standard input)"
     )
-    p.add_argument("--example", action="store_true", help="print the example config and exit")
-    p.add_argument("--out", metavar="DIR", help="write figures and analysis.json into DIR")
-    p.add_argument("--no-figures", action="store_true", help="with --out, write analysis.json only")
-    p.add_argument("--json", action="store_true", help="print JSON instead of the table")
-    p.set_defaults(func=analyze.run)
+    parser.add_argument("--example", action="store_true", help="print the example config and exit")
+    parser.add_argument("--out", metavar="DIR", help="write figures and analysis.json into DIR")
+    parser.add_argument("--no-figures", action="store_true", help="with --out, write analysis.json only")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of the table")
+    parser.set_defaults(func=analyze.run)
 
 
 def _add_sweep(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
+    parser = sub.add_parser(
         "sweep",
         formatter_class=_Formatter,
         help="J_attack at every beta = r/t with t <= t_max",
         description="The attacked cost at every r/t in lowest terms with t <= T (online schedule from "
         "design_online unless the config fixes it), the large-period limit J_inf(beta) and beta-bar.",
     )
-    _add_system_flags(p)
-    p.add_argument(
+    _add_system_flags(parser)
+    parser.add_argument(
         "--t-max",
         type=_int_at_least(2),
         default=None,
         metavar="T",
         help=f"largest attack period (default: the config's [attack.sweep] t_max, else {DEFAULT_T_MAX})",
     )
-    _add_format_flags(p)
-    p.set_defaults(func=sweep.run)
+    _add_format_flags(parser)
+    parser.set_defaults(func=sweep.run)
 
 
 def _add_simulate(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
+    parser = sub.add_parser(
         "simulate",
         formatter_class=_Formatter,
         help="Monte Carlo of one schedule, against its exact J_H",
         description="Monte Carlo of the protocol (sensor, channel, event detector, attacker) from the "
         "paper's initial condition, compared with the exact finite-horizon J_H of the same horizon.",
     )
-    _add_system_flags(p)
-    p.add_argument("--schedule", choices=("online", "offline"), default="online", help="power schedule")
-    p.add_argument(
+    _add_system_flags(parser)
+    parser.add_argument("--schedule", choices=("online", "offline"), default="online", help="power schedule")
+    parser.add_argument(
         "--z0",
         type=_int_at_least(1),
         default=None,
         metavar="Z",
         help="memory length (default: design_online(lam, ratio))",
     )
-    p.add_argument(
+    parser.add_argument(
         "--mu",
         type=float,
         default=None,
         metavar="MU",
         help="probability of the z0-bit memory (default 1 with --z0)",
     )
-    p.add_argument("--attack", metavar="R/T", help="block the first R of every T flag-ACKs")
-    p.add_argument("--runs", type=_int_at_least(2), default=10_000, metavar="N", help="independent runs")
-    p.add_argument(
+    parser.add_argument("--attack", metavar="R/T", help="block the first R of every T flag-ACKs")
+    parser.add_argument("--runs", type=_int_at_least(2), default=10_000, metavar="N", help="independent runs")
+    parser.add_argument(
         "--horizon", type=_int_at_least(1), default=DEFAULT_HORIZON, metavar="H", help="steps per run"
     )
-    p.add_argument("--seed", type=_int_at_least(0), default=DEFAULT_SEED, metavar="S", help="random seed")
-    p.add_argument(
+    parser.add_argument(
+        "--seed", type=_int_at_least(0), default=DEFAULT_SEED, metavar="S", help="random seed"
+    )
+    parser.add_argument(
         "--mode",
         choices=MODES,
         default="covariance",
         help="average Tr P_k, or simulate the noise and average the squared error",
     )
-    p.add_argument("--protocol", choices=sorted(PROTOCOLS), default="B", help="flag-ACK protocol type")
-    _add_format_flags(p)
-    p.set_defaults(func=simulate.run)
+    parser.add_argument("--protocol", choices=sorted(PROTOCOLS), default="B", help="flag-ACK protocol type")
+    _add_format_flags(parser)
+    parser.set_defaults(func=simulate.run)
 
 
 def build_parser() -> argparse.ArgumentParser:
