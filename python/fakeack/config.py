@@ -216,6 +216,7 @@ def _attacks(table: dict[str, Any]) -> tuple[PeriodicBlocking, ...]:
             ) from None
         except ValueError as exc:
             raise config_error("attack", key, strip_name(str(exc), "beta")) from None
+        assert isinstance(attack, PeriodicBlocking)  # as_attack's reading of a string or number
         if attack in attacks:
             raise config_error("attack", key, f"{attack.label} is listed twice")
         attacks.append(attack)

@@ -12,7 +12,7 @@ import numpy as np
 from ..attack import attack_chain, stationary_distribution
 from ..attacks import PeriodicBlocking
 from ..study import Analysis
-from ..threshold import j_attack_limit
+from ..threshold import BetaBar, BetaSweep, j_attack_limit
 from ._io import atomic_write
 from ._report import system_text
 
@@ -51,7 +51,7 @@ def _jk_figure(analysis: Analysis) -> Any:
     return plots.plot_jk(curves, title=title, mc_runs=None if analysis.mc is None else analysis.mc.runs)
 
 
-def _beta_figure(analysis: Analysis, paper_beta_bar: float | None) -> Any:
+def _beta_figure(analysis: Analysis, sweep: BetaSweep, bar: BetaBar, paper_beta_bar: float | None) -> Any:
     """Fig. 4: the sweep, the large-period limit on a grid of budgets and both thresholds."""
     from .. import plots
 
@@ -62,9 +62,7 @@ def _beta_figure(analysis: Analysis, paper_beta_bar: float | None) -> Any:
         f"attacked cost against the budget ($z_0={z0}${_mu_text(analysis)}, "
         f"$\\lambda={analysis.lam:g}$, ratio {analysis.ratio})"
     )
-    return plots.plot_beta_sweep(
-        analysis.sweep, analysis.bar, grid, limit, paper_beta_bar=paper_beta_bar, title=title
-    )
+    return plots.plot_beta_sweep(sweep, bar, grid, limit, paper_beta_bar=paper_beta_bar, title=title)
 
 
 def _stationary_figure(analysis: Analysis, attack: PeriodicBlocking) -> Any:
@@ -99,7 +97,9 @@ def write_figures(
         return []
     written = _save(_jk_figure(analysis), outdir, "fig3_jk")
     if analysis.sweep is not None and analysis.bar is not None:
-        written += _save(_beta_figure(analysis, paper_beta_bar), outdir, "fig4_beta")
+        written += _save(
+            _beta_figure(analysis, analysis.sweep, analysis.bar, paper_beta_bar), outdir, "fig4_beta"
+        )
     if stationary is not None:
         written += _save(_stationary_figure(analysis, stationary), outdir, "fig_stationary")
     return written

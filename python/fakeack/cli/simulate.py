@@ -147,7 +147,9 @@ def run(args: argparse.Namespace) -> int:
     inputs = resolve_system(args)
     if args.runs < 2:
         raise ValueError(f"--runs must be at least 2 (the standard error needs two runs), got {args.runs}")
-    plan = _plan(args, inputs, as_attack(args.attack, "--attack"))
+    attack = as_attack(args.attack, "--attack")
+    assert attack is None or isinstance(attack, PeriodicBlocking)  # as_attack's reading of "r/t"
+    plan = _plan(args, inputs, attack)
     mc = MonteCarloConfig(args.runs, args.horizon, args.seed, args.mode, args.protocol)
     result = run_monte_carlo(inputs.system, inputs.lam, plan.schedule, mc, plan.attack)
     pair = None if plan.attack is None else (plan.attack.r, plan.attack.t)
