@@ -258,6 +258,16 @@ def _evaluate(
     return row, Curve(case.curve_label, exact, mc_curve, case.stationary)
 
 
+def _sweep_and_thresholds(
+    s: LinearSystem, lam: float, ratio: Fraction, online: OnlineDesign, designed: bool, t_max: int
+) -> tuple[BetaSweep, BetaBar]:
+    """The beta sweep and both thresholds, for the designed online schedule or the given one."""
+    if designed:
+        return beta_sweep(s, lam, ratio, t_max), beta_bar(s, lam, ratio, t_max)
+    z0, mu = online
+    return _custom_threshold(s, lam, ratio, z0, mu, t_max)
+
+
 def _threshold_rows(bar: BetaBar, paper: dict[str, str]) -> list[Row]:
     """Both beta-bar rows (no Monte Carlo of a threshold)."""
     finite, t_max = bar.finite, bar.t_max
@@ -346,7 +356,6 @@ def analyse(
     """
     start = time.perf_counter()
     paper = paper or {}
-    z0, mu = online
     H = mc.horizon if mc is not None else horizon
     cases = _cases(s, lam, ratio, online, attacks)
     j_off, j_on, j_all_blocked = cases[0].stationary, cases[1].stationary, j_max(s, lam)
@@ -357,22 +366,14 @@ def analyse(
         rows.append(row)
         curves.append(curve)
     exact_j_max = float(_exact_j_max_curve(s, lam, H)[-1])
+    paper_j_max = paper.get("j_max", "-")
     rows.append(
-        Row(
-            "j_max",
-            "J_max (all blocked)",
-            analytic=j_all_blocked,
-            exact_h=exact_j_max,
-            paper=paper.get("j_max", "-"),
-        )
+        Row("j_max", "J_max (all blocked)", analytic=j_all_blocked, exact_h=exact_j_max, paper=paper_j_max)
     )
 
     sweep = bar = None
     if t_max is not None:
-        if designed:
-            sweep, bar = beta_sweep(s, lam, ratio, t_max), beta_bar(s, lam, ratio, t_max)
-        else:
-            sweep, bar = _custom_threshold(s, lam, ratio, z0, mu, t_max)
+        sweep, bar = _sweep_and_thresholds(s, lam, ratio, online, designed, t_max)
         rows += _threshold_rows(bar, paper)
     return Analysis(
         system=s,
