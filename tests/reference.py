@@ -1,5 +1,5 @@
 """Independent reference implementations for the tests: plain numpy/scipy, written from the
-paper's rules (and ERRATA), sharing no code with fakeack."""
+paper's rules (as corrected in the README's Model notes), sharing no code with fakeack."""
 
 from __future__ import annotations
 
@@ -27,7 +27,7 @@ def traces(A, Q, pbar, n):
 
 
 def explore_chain(lam, z0, r, t, mu=1.0):
-    """Breadth-first exploration of the attack chain from (0, 0) by rules 1)-4) (ERRATA item 3:
+    """Breadth-first exploration of the attack chain from (0, 0) by rules 1)-4) (Model note 3:
     the first r of every t flags are blocked). Returns (states list, dense row-stochastic T)."""
     a = 1.0 - lam
 
@@ -73,7 +73,7 @@ def stationary_dense(T):
 
 
 def online_chain(lam, z0, mu):
-    """Holding-time chain of the unattacked online schedule with variable memory (ERRATA item 2):
+    """Holding-time chain of the unattacked online schedule with variable memory (Model note 2):
     a flag at tau = z0 with probability mu, always at tau = z0 + 1. Returns (T, flag_prob per state)."""
     a = 1.0 - lam
     n = z0 + 2

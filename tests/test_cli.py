@@ -17,6 +17,7 @@ import pytest
 import fakeack as fa
 from conftest import PAPER, PAPER_LAM, PAPER_RATIO
 from fakeack import cli, config, plots
+from fakeack.attacks import as_attack
 
 HAS_SIMULATE = hasattr(fa._fakeack, "simulate")
 needs_simulate = pytest.mark.skipif(not HAS_SIMULATE, reason="compiled core has no simulate yet")
@@ -100,7 +101,7 @@ def test_reproduce_table_without_mc(capsys):
     assert f"{exact:.6f}" in out
     flat = " ".join(out.split())
     assert "not with the stationary value" not in flat  # that footnote is for runs with MC
-    assert "note: the paper prints J_online = 1.6399" in flat and "ERRATA 2" in flat and "ERRATA 7" in flat
+    assert "note: the paper prints J_online = 1.6399" in flat and "Model note 2" in flat and "Model note 7" in flat
 
 
 def test_reproduce_json(capsys):
@@ -172,7 +173,7 @@ def test_keyboard_interrupt_exits_130(capsys, monkeypatch):
     def boom(*a, **k):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(cli, "analyse", boom)
+    monkeypatch.setattr(cli.reproduce, "analyse", boom)
     rc, out, err = run(capsys, "reproduce", "--runs", 0, "--no-figures")
     assert rc == 130 and err.strip() == "fakeack: interrupted"
 
@@ -376,16 +377,30 @@ def test_config_unknown_key_suggests(capsys, tmp_path):
     assert rc == 2 and "--example" in err
 
 
-def test_parse_attack():
-    assert config.parse_attack("2/6") == config.AttackSpec(2, 6)  # kept as written
-    assert config.parse_attack(0.2) == config.AttackSpec(1, 5)
-    assert config.parse_attack("0.25").label == "1/4"
-    assert config.parse_attack(0).label == "0/1"
+def test_attack_spellings():
+    assert as_attack("2/6") == fa.PeriodicBlocking(2, 6)  # kept as written
+    assert as_attack(0.2) == fa.PeriodicBlocking(1, 5)
+    assert as_attack("0.25").label == "1/4"
+    assert as_attack(0).label == "0/1"
     for bad in ("1/1", "3/2", "a/b", -0.5):
         with pytest.raises(ValueError):
-            config.parse_attack(bad)
+            as_attack(bad)
     with pytest.raises(TypeError):
-        config.parse_attack(True)
+        as_attack(True)
+
+
+def test_config_attacks_are_periodic_blocking():
+    cfg = config.parse_config(config.loads(BASE + '[attack]\nbetas = ["2/6", 0.2, "0.25"]\n'))
+    assert cfg.attacks == (fa.PeriodicBlocking(2, 6), fa.PeriodicBlocking(1, 5), fa.PeriodicBlocking(1, 4))
+    assert [a.label for a in cfg.attacks] == ["2/6", "1/5", "1/4"]
+
+
+def test_online_z0_without_mu_means_mu_1():
+    cfg = config.parse_config(config.loads(BASE + "[online]\nz0 = 2\n"))
+    assert cfg.online == (2, 1.0) and cfg.online.mu == 1.0 and not cfg.designed
+    s = fa.LinearSystem(**PAPER)
+    assert fa.j_online(s, 0.5, 2, cfg.online.mu) == pytest.approx(fa.j_online(s, 0.5, 2, 1.0), rel=1e-15)
+    assert fa.j_online(s, 0.5, 2, 0.0) != pytest.approx(fa.j_online(s, 0.5, 2, 1.0))  # so a default of 0 would show
 
 
 # ------------------------------------------------------------------------------ plots

@@ -1,4 +1,4 @@
-"""Issue 2: the analytic core, each formula against an independent derivation (tests/reference.py)."""
+"""The analytic core, each formula against an independent derivation (tests/reference.py)."""
 
 import math
 from fractions import Fraction
@@ -105,7 +105,7 @@ def test_energy_ratio_exact():
         fa.energy_ratio(None, 4, 1)
 
 
-def test_offline_schedule_errata_example():
+def test_offline_schedule_model_note_example():
     assert fa.offline_schedule(Fraction(1, 7)).tolist() == [1, 0, 0, 0, 0, 0, 0]
     assert fa.offline_schedule("1/7").tolist() == [1, 0, 0, 0, 0, 0, 0]
 
@@ -157,7 +157,7 @@ def test_online_formulas_against_chain(paper, z0, mu, lam):
     assert_allclose(fa.online_high_power_rate(lam, z0, mu), pi @ flag, rtol=1e-10)
 
 
-def test_online_errata_checks():
+def test_online_model_note_checks():
     assert fa.online_high_power_rate(0.5, 2) == pytest.approx(1 / 7, rel=1e-15)
     assert fa.online_high_power_rate(0.3, 3, 0.0) == pytest.approx(
         fa.online_high_power_rate(0.3, 4, 1.0), rel=1e-15)
@@ -206,7 +206,7 @@ def test_j_max_series(paper):
     assert_allclose(fa.j_max(paper, lam), series, rtol=1e-12)
 
 
-def test_j_max_errata_stability():
+def test_j_max_stability_condition():
     # A = 1.2, lam = 0.2 passes the printed test (0.96 < 1) but (1-lam) rho^2 = 1.152 >= 1.
     s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
     assert fa.j_max(s, 0.2) == math.inf
@@ -229,7 +229,7 @@ def test_j_max_vector():
 def test_chain_paper_example():
     lam = 0.37
     l, a = lam, 1 - lam
-    Ts = np.array([  # the paper's column-stochastic matrix with ERRATA item 4 applied
+    Ts = np.array([  # the paper's column-stochastic matrix with Model note 4 applied
         [l, l, 0, 0, 0, 0, 0, 0, 0, 0, 1],
         [a, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
         [0, a, 0, 0, 0, 0, 0, 0, 0, 0, 0],

@@ -1,4 +1,4 @@
-"""Issue 4, item 5: detecting the attacker from delivered flag-ACKs."""
+"""Detecting the attacker from delivered flag-ACKs."""
 
 import numpy as np
 import pytest

@@ -1,4 +1,4 @@
-"""Issue 3: Monte Carlo of the protocol against the analytic formulas and the exact curves."""
+"""Monte Carlo of the protocol against the analytic formulas and the exact curves."""
 
 import os
 import signal

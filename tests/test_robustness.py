@@ -1,4 +1,4 @@
-"""Issue 7: edge cases with defined answers, bad input, and fuzzing of the public API."""
+"""Edge cases with defined answers, bad input, and fuzzing of the public API."""
 
 import math
 from fractions import Fraction

@@ -1,4 +1,4 @@
-"""Issue 4: sweeps, thresholds, masks and mu < 1, each against the general chain (GTH) or scipy."""
+"""Sweeps, thresholds, masks and mu < 1, each against the general chain (GTH) or scipy."""
 
 import itertools
 import math

@@ -14,6 +14,8 @@ from typing import Any
 import numpy as np
 
 __all__ = [
+    "MODES",
+    "PROTOCOLS",
     "as_fraction",
     "as_int",
     "as_matrix",
@@ -21,6 +23,13 @@ __all__ = [
     "as_ratio",
     "as_real",
 ]
+
+
+#: Monte Carlo fidelities: average Tr P_k ("covariance") or simulate the noise and the errors ("state").
+MODES = ("covariance", "state")
+
+#: Flag-ACK protocols: "B" sends a flag packet the attacker drops, "A" a bit every step it flips.
+PROTOCOLS = ("B", "A")
 
 
 def _is_bool(x: Any) -> bool:

@@ -48,7 +48,7 @@ def attack_chain(lam: Any, z0: Any, r: Any, t: Any) -> tuple[np.ndarray, sp.csr_
 
     States follow the paper's order (level :math:`\sigma = 0..t-1`; in level :math:`\sigma \le r`,
     :math:`\tau = 0..z_0(\sigma+1)`, else :math:`\tau = 0..z_0`); transitions follow rules 1)-4),
-    with the attacker blocking the first r of every t flag-ACKs (ERRATA item 3).
+    with the attacker blocking the first r of every t flag-ACKs (Model note 3).
 
     Parameters
     ----------
@@ -67,8 +67,8 @@ def attack_chain(lam: Any, z0: Any, r: Any, t: Any) -> tuple[np.ndarray, sp.csr_
         ``(|S|, 2)`` int64 array of ``[tau, sigma]``.
     T : scipy.sparse.csr_array
         Row-stochastic: ``T[i, j] = P[S_{k+1} = j | S_k = i]``, i.e. the transpose of the paper's
-        column-stochastic :math:`\mathcal T_s` (for ``z0=2, r=1, t=3`` its eq. (12), with ERRATA
-        item 4 applied).
+        column-stochastic :math:`\mathcal T_s` (for ``z0=2, r=1, t=3`` its eq. (12), with Model
+        note 4 applied).
 
     Raises
     ------

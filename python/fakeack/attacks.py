@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from . import _fakeack
-from ._validate import as_int
+from ._validate import as_fraction, as_int
 
 __all__ = ["Attack", "MAX_MASK", "MaskBlocking", "PeriodicBlocking", "as_attack", "as_mask"]
 
@@ -150,15 +150,13 @@ _RT = re.compile(r"^\s*(\d+)\s*/\s*(\d+)\s*$")
 
 def _periodic_from_text(value: str, name: str) -> PeriodicBlocking:
     m = _RT.match(value)
-    if m:
-        r, t = int(m.group(1)), int(m.group(2))
-    else:
-        try:
-            f = Fraction(value.strip())
-        except (ValueError, ZeroDivisionError):
-            raise ValueError(f"{name} must look like 'r/t' (e.g. '1/5'), got {value!r}") from None
-        r, t = f.numerator, f.denominator
-    return _periodic(r, t, value, name)
+    if m:  # "r/t" is kept as written: "2/6" blocks two in a row, not one of three
+        return _periodic(int(m.group(1)), int(m.group(2)), value, name)
+    try:
+        f = as_fraction(name, value.strip())
+    except ValueError:
+        raise ValueError(f"{name} must look like 'r/t' (e.g. '1/5'), got {value!r}") from None
+    return _periodic(f.numerator, f.denominator, value, name)
 
 
 def _periodic(r: int, t: int, value: Any, name: str) -> PeriodicBlocking:

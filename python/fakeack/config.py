@@ -15,17 +15,32 @@ example (:func:`example_text`), which is the paper's system of Sec. V::
 from __future__ import annotations
 
 import difflib
-import math
-import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
+from functools import partial
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from ._validate import as_matrix
+from ._config_values import (
+    ConfigError,
+    Section,
+    check_keys,
+    config_error,
+    read_choice,
+    read_fraction,
+    read_int,
+    read_matrix,
+    read_real,
+    require,
+    strip_name,
+    toml_kind,
+)
+from ._validate import MODES, PROTOCOLS, as_ratio
+from .attacks import PeriodicBlocking, as_attack
 from .schedules import OnlineDesign, design_online, energy_ratio
 from .system import LinearSystem
 
@@ -38,216 +53,189 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10 with the tomli bac
         _toml = None  # type: ignore[assignment]
 
 __all__ = [
-    "AttackSpec",
     "Config",
     "ConfigError",
     "MonteCarloConfig",
     "example_text",
     "load_config",
     "loads",
-    "parse_attack",
     "parse_config",
 ]
 
 
-class ConfigError(ValueError):
-    """A configuration problem; the message starts with ``config:`` and names the key."""
-
-
-def _err(section: str, key: str | None, problem: str) -> ConfigError:
-    where = f"[{section}]" + (f" {key}" if key else "")
-    return ConfigError(f"config: {where}: {problem}")
-
-
-def _kind(x: Any) -> str:
-    """TOML-ish name of a value's type, for messages."""
-    if isinstance(x, bool):
-        return "boolean"
-    if isinstance(x, int):
-        return "integer"
-    if isinstance(x, float):
-        return "float"
-    if isinstance(x, str):
-        return "string"
-    if isinstance(x, list):
-        return "array"
-    if isinstance(x, dict):
-        return "table"
-    return type(x).__name__
-
-
-def _strip_name(msg: str, name: str) -> str:
-    """``"A must be square"`` -> ``"must be square"`` (the key is already in the prefix)."""
-    for sep in (": ", " "):
-        if msg.startswith(name + sep):
-            return msg[len(name) + len(sep) :]
-    return msg
-
-
-# ------------------------------------------------------------------------------------ values
-
-
-@dataclass(frozen=True)
-class AttackSpec:
-    """The paper's attack: block the first ``r`` of every ``t`` flag-ACKs (Algorithm 1).
-
-    A pair that is not in lowest terms (``"2/6"``) is kept as written: blocking 2 in a row out of
-    6 is a different attack from 1 of 3.
-    """
-
-    r: int
-    t: int
-
-    @property
-    def beta(self) -> Fraction:
-        """The budget :math:`\\beta = r/t`."""
-        return Fraction(self.r, self.t)
-
-    @property
-    def label(self) -> str:
-        """``"r/t"`` as written."""
-        return f"{self.r}/{self.t}"
-
-    def __str__(self) -> str:
-        return self.label
-
-
-_RT = re.compile(r"^\s*(\d+)\s*/\s*(\d+)\s*$")
-
-
-def parse_attack(value: Any, name: str = "attack") -> AttackSpec:
-    """Read an attack ``"r/t"`` (block the first r of every t flag-ACKs).
-
-    Parameters
-    ----------
-    value : str, int or float
-        ``"r/t"`` with integers ``0 <= r < t`` (kept as written, not reduced), a decimal string
-        such as ``"0.2"``, ``0`` (no attack), or a float in ``[0, 1)`` (read as the simplest
-        fraction with denominator up to 1000 that equals it to 1e-12).
-    name : str, optional
-        Name used in error messages.
-
-    Returns
-    -------
-    AttackSpec
-
-    Raises
-    ------
-    ValueError
-        If the value is not a fraction in ``[0, 1)``.
-    TypeError
-        If it is not a string or number.
-    """
-    if isinstance(value, bool) or not isinstance(value, (str, int, float, Fraction)):
-        raise TypeError(f"{name} must be a fraction 'r/t' or a number, got {_kind(value)}")
-    if isinstance(value, str):
-        m = _RT.match(value)
-        if m:
-            r, t = int(m.group(1)), int(m.group(2))
-        else:
-            try:
-                f = Fraction(value.strip())
-            except (ValueError, ZeroDivisionError):
-                raise ValueError(f"{name} must look like 'r/t' (e.g. '1/5'), got {value!r}") from None
-            r, t = f.numerator, f.denominator
-    elif isinstance(value, float):
-        if not math.isfinite(value):
-            raise ValueError(f"{name} must be finite, got {value}")
-        f = Fraction(value).limit_denominator(1000)
-        if abs(float(f) - value) > 1e-12:
-            raise ValueError(f"{name} {value!r} is not a simple fraction; write it as 'r/t'")
-        r, t = f.numerator, f.denominator
-    else:
-        f = Fraction(value)
-        r, t = f.numerator, f.denominator
-    if t < 1:
-        raise ValueError(f"{name}: the period t must be at least 1, got {value!r}")
-    if not 0 <= r < t:
-        raise ValueError(
-            f"{name} must lie in [0, 1) (block r < t of every t flag-ACKs; r = t is J_max), got {value!r}"
-        )
-    return AttackSpec(r, t)
-
-
-def _fraction(section: str, key: str, x: Any) -> Fraction:
-    if isinstance(x, bool) or not isinstance(x, (int, float, str)):
-        raise _err(section, key, f'must be a number or a fraction string like "1/7", got {_kind(x)}')
-    if isinstance(x, float) and not math.isfinite(x):
-        raise _err(section, key, f"must be finite, got {x}")
-    if isinstance(x, str):
-        try:
-            return Fraction(x.strip())
-        except (ValueError, ZeroDivisionError):
-            raise _err(section, key, f'cannot read {x!r} as a number or fraction "p/q"') from None
-    if isinstance(x, float):
-        simple = Fraction(x).limit_denominator(10**9)
-        return simple if float(simple) == x else Fraction(x)
-    return Fraction(x)
-
-
-def _real(section: str, key: str, x: Any) -> float:
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
-        raise _err(section, key, f"must be a number, got {_kind(x)} {x!r}")
-    v = float(x)
-    if not math.isfinite(v):
-        raise _err(section, key, f"must be finite, got {v}")
-    return v
-
-
-def _int(section: str, key: str, x: Any, minimum: int) -> int:
-    if isinstance(x, bool) or not isinstance(x, int):
-        raise _err(section, key, f"must be an integer, got {_kind(x)} {x!r}")
-    if x < minimum:
-        raise _err(section, key, f"must be at least {minimum}, got {x}")
-    return x
-
-
-def _matrix(section: str, key: str, x: Any) -> np.ndarray:
-    def numeric(v: Any) -> bool:
-        if isinstance(v, list):
-            return all(numeric(u) for u in v)
-        return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-    if not numeric(x):
-        raise _err(section, key, f"must be a number or a nested list of numbers (rows), got {_kind(x)} {x!r}")
-    if isinstance(x, list) and x and not any(isinstance(u, list) for u in x):
-        raise _err(
-            section, key, f"must be a number or a list of rows, e.g. [[1.0, 0.0]], got the flat list {x!r}"
-        )
-    try:
-        return as_matrix(key, x)
-    except (TypeError, ValueError) as exc:
-        raise _err(section, key, _strip_name(str(exc), key)) from None
-
-
-# ------------------------------------------------------------------------------------ schema
-
-
-_SCHEMA: dict[str, tuple[str, ...]] = {
-    "system": ("A", "C", "Q", "R", "lam"),
-    "energy": ("ratio", "Psi", "Delta", "delta"),
-    "online": ("design", "z0", "mu"),
-    "attack": ("betas", "sweep"),
-    "montecarlo": ("runs", "horizon", "seed", "mode", "protocol"),
+_SECTIONS: dict[str, Section] = {
+    "system": Section(("A", "C", "Q", "R", "lam"), "A, C, Q, R and lam are required"),
+    "energy": Section(("ratio", "Psi", "Delta", "delta"), 'give ratio = "p/q", or Psi, Delta, delta'),
+    "online": Section(("design", "z0", "mu")),
+    "attack": Section(("betas", "sweep")),
+    "montecarlo": Section(("runs", "horizon", "seed", "mode", "protocol")),
 }
-_SWEEP_KEYS = ("t_max",)
+_SWEEP_SECTION = Section(("t_max",))
 
 
-def _check_keys(section: str, table: Any, allowed: tuple[str, ...]) -> dict[str, Any]:
-    if not isinstance(table, dict):
-        raise _err(section, None, f"must be a table ([{section}]), got {_kind(table)}")
-    for key in table:
-        if key not in allowed:
-            hint = difflib.get_close_matches(key, allowed, n=1)
-            tip = f"; did you mean {hint[0]!r}?" if hint else ""
-            raise _err(section, key, f"unknown key (expected one of {', '.join(allowed)}){tip}")
-    return table
+def _check_sections(data: Any) -> None:
+    if not isinstance(data, dict):
+        raise ConfigError(f"config: expected a TOML table at the top level, got {toml_kind(data)}")
+    for name in data:
+        if name not in _SECTIONS:
+            hint = difflib.get_close_matches(name, list(_SECTIONS), n=1)
+            tip = f"; did you mean [{hint[0]}]?" if hint else ""
+            expected = ", ".join(f"[{s}]" for s in _SECTIONS)
+            raise ConfigError(f"config: [{name}]: unknown section (expected {expected}){tip}")
 
 
-def _require(section: str, table: dict[str, Any], key: str, why: str = "") -> Any:
-    if key not in table:
-        raise _err(section, key, "missing" + (f" ({why})" if why else ""))
-    return table[key]
+def _section(data: dict[str, Any], name: str) -> dict[str, Any]:
+    """The checked table of section ``name`` (empty when an optional section is absent)."""
+    section = _SECTIONS[name]
+    if name not in data:
+        if section.required:
+            raise ConfigError(f"config: [{name}]: missing section ({section.required})")
+        return {}
+    return check_keys(name, data[name], section)
+
+
+# [system]
+
+_MATRIX_KEYS = ("A", "C", "Q", "R")
+
+
+def _system_matrices(table: dict[str, Any]) -> dict[str, np.ndarray]:
+    """A, C, Q and R, each read and checked against the others' shapes."""
+    matrices = {k: read_matrix("system", k, require("system", table, k)) for k in _MATRIX_KEYS}
+    n = matrices["A"].shape[0]
+    if matrices["A"].shape != (n, n):
+        raise config_error("system", "A", f"must be square, found shape {matrices['A'].shape}")
+    if matrices["C"].shape[1] != n:
+        raise config_error(
+            "system", "C", f"must have {n} columns (A is {n}x{n}), found shape {matrices['C'].shape}"
+        )
+    m = matrices["C"].shape[0]
+    if matrices["Q"].shape != (n, n):
+        raise config_error("system", "Q", f"must be {n}x{n} like A, found shape {matrices['Q'].shape}")
+    if matrices["R"].shape != (m, m):
+        raise config_error(
+            "system", "R", f"must be {m}x{m} (C has {m} rows), found shape {matrices['R'].shape}"
+        )
+    return matrices
+
+
+def _lam(table: dict[str, Any]) -> float:
+    lam = read_real("system", "lam", require("system", table, "lam", "arrival probability at low power"))
+    if not 0 < lam < 1:
+        raise config_error("system", "lam", f"must lie in (0, 1), got {lam}")
+    return lam
+
+
+def _linear_system(matrices: dict[str, np.ndarray]) -> LinearSystem:
+    try:
+        return LinearSystem(*(matrices[k] for k in _MATRIX_KEYS))
+    except (TypeError, ValueError) as exc:
+        # Q not PSD, R not PD, (A, C) not detectable, ...: name the key if the message does.
+        msg = str(exc)
+        key = next((k for k in ("(A, C)", *_MATRIX_KEYS) if msg.startswith((k + " ", k + ":"))), None)
+        if key is None:
+            raise config_error("system", None, msg) from None
+        raise config_error("system", key.strip("()"), strip_name(msg, key)) from None
+
+
+# [energy]
+
+_ENERGIES = ("Psi", "Delta", "delta")
+
+
+def _energy_ratio(table: dict[str, Any]) -> Fraction:
+    """The budget p/q, given as ``ratio`` or as the three energies."""
+    given = [k for k in _ENERGIES if k in table]
+    if "ratio" in table and given:
+        raise config_error("energy", given[0], "give either ratio or Psi, Delta, delta, not both")
+    if "ratio" in table:
+        ratio = read_fraction("energy", "ratio", table["ratio"])
+        try:
+            return as_ratio("ratio", ratio)
+        except ValueError as exc:
+            raise config_error("energy", "ratio", strip_name(str(exc), "ratio")) from None
+    if not given:
+        raise config_error("energy", "ratio", 'missing (give ratio = "p/q", or Psi, Delta, delta)')
+    energies = {
+        k: read_fraction("energy", k, require("energy", table, k, "Psi, Delta and delta go together"))
+        for k in _ENERGIES
+    }
+    try:
+        return energy_ratio(energies["Psi"], energies["Delta"], energies["delta"])
+    except ValueError as exc:
+        raise config_error("energy", None, str(exc)) from None
+
+
+# [online]
+
+
+def _online(table: dict[str, Any], lam: float, ratio: Fraction) -> tuple[OnlineDesign, bool]:
+    """``(z0, mu)`` and whether it is ``design_online``'s (``mu`` defaults to 1 with ``z0``)."""
+    design = table.get("design", "z0" not in table and "mu" not in table)
+    if not isinstance(design, bool):
+        raise config_error("online", "design", f"must be true or false, got {toml_kind(design)} {design!r}")
+    if design:
+        for k in ("z0", "mu"):
+            if k in table:
+                raise config_error(
+                    "online", k, "cannot be given with design = true (the design fixes z0 and mu)"
+                )
+        try:
+            return design_online(lam, ratio), True
+        except ValueError as exc:
+            raise config_error("energy", "ratio", str(exc)) from None
+    z0 = read_int("online", "z0", require("online", table, "z0", "or set design = true"), 1)
+    mu = read_real("online", "mu", table.get("mu", 1.0))
+    if not 0 <= mu <= 1:
+        raise config_error("online", "mu", f"must lie in [0, 1], got {mu}")
+    return OnlineDesign(z0, mu), False
+
+
+# [attack]
+
+_MAX_SWEEP_T = 100_000
+
+
+def _attacks(table: dict[str, Any]) -> tuple[PeriodicBlocking, ...]:
+    """``betas``, each read by :func:`fakeack.attacks.as_attack` ("2/6" kept as written)."""
+    if "betas" not in table:
+        return ()
+    betas = table["betas"]
+    if not isinstance(betas, list):
+        raise config_error(
+            "attack", "betas", f'must be an array such as ["1/5", "2/3"], got {toml_kind(betas)}'
+        )
+    attacks: list[PeriodicBlocking] = []
+    for i, value in enumerate(betas):
+        key = f"betas[{i}]"
+        try:
+            attack = as_attack(value, "beta")
+        except TypeError:
+            raise config_error(
+                "attack", key, f"must be a fraction 'r/t' or a number, got {toml_kind(value)}"
+            ) from None
+        except ValueError as exc:
+            raise config_error("attack", key, strip_name(str(exc), "beta")) from None
+        assert isinstance(attack, PeriodicBlocking)  # as_attack's reading of a string or number
+        if attack in attacks:
+            raise config_error("attack", key, f"{attack.label} is listed twice")
+        attacks.append(attack)
+    return tuple(attacks)
+
+
+def _sweep_t_max(table: dict[str, Any]) -> int | None:
+    """``[attack.sweep] t_max``, or None (no sweep)."""
+    if "sweep" not in table:
+        return None
+    sweep = check_keys("attack.sweep", table["sweep"], _SWEEP_SECTION)
+    t_max = read_int("attack.sweep", "t_max", require("attack.sweep", sweep, "t_max"), 2)
+    if t_max > _MAX_SWEEP_T:
+        problem = f"must be at most {_MAX_SWEEP_T} (about 3e9 fractions), got {t_max}"
+        raise config_error("attack.sweep", "t_max", problem)
+    return t_max
+
+
+# [montecarlo]
 
 
 @dataclass(frozen=True)
@@ -259,6 +247,27 @@ class MonteCarloConfig:
     seed: int = 1
     mode: str = "covariance"
     protocol: str = "B"
+
+
+#: How each ``[montecarlo]`` key is read.
+_MONTECARLO_READERS: dict[str, Callable[[str, str, Any], Any]] = {
+    "runs": partial(read_int, minimum=2),
+    "horizon": partial(read_int, minimum=1),
+    "seed": partial(read_int, minimum=0),
+    "mode": partial(read_choice, allowed=MODES),
+    "protocol": partial(read_choice, allowed=PROTOCOLS),
+}
+
+
+def _montecarlo(data: dict[str, Any]) -> MonteCarloConfig | None:
+    """The Monte Carlo settings, or None when the section is absent (no Monte Carlo)."""
+    if "montecarlo" not in data:
+        return None
+    table = _section(data, "montecarlo")
+    given = {
+        key: read("montecarlo", key, table[key]) for key, read in _MONTECARLO_READERS.items() if key in table
+    }
+    return MonteCarloConfig(**given)
 
 
 @dataclass(frozen=True)
@@ -277,8 +286,8 @@ class Config:
         ``(z0, mu)`` of the online schedule.
     designed : bool
         Whether ``online`` came from :func:`fakeack.design_online` (spends the budget exactly).
-    attacks : tuple of AttackSpec
-        ``[attack] betas``.
+    attacks : tuple of PeriodicBlocking
+        ``[attack] betas``, each as written (``"2/6"`` blocks 2 in a row of 6).
     sweep_t_max : int or None
         ``[attack.sweep] t_max``; None skips the sweep.
     montecarlo : MonteCarloConfig or None
@@ -292,7 +301,7 @@ class Config:
     ratio: Fraction
     online: OnlineDesign
     designed: bool
-    attacks: tuple[AttackSpec, ...] = ()
+    attacks: tuple[PeriodicBlocking, ...] = ()
     sweep_t_max: int | None = None
     montecarlo: MonteCarloConfig | None = None
     source: str = "<string>"
@@ -318,129 +327,26 @@ def parse_config(data: dict[str, Any], source: str = "<string>") -> Config:
     ConfigError
         The first problem found, naming its section and key.
     """
-    if not isinstance(data, dict):
-        raise ConfigError(f"config: expected a TOML table at the top level, got {_kind(data)}")
-    for sec in data:
-        if sec not in _SCHEMA:
-            hint = difflib.get_close_matches(sec, list(_SCHEMA), n=1)
-            tip = f"; did you mean [{hint[0]}]?" if hint else ""
-            raise ConfigError(
-                f"config: [{sec}]: unknown section (expected {', '.join(f'[{s}]' for s in _SCHEMA)}){tip}"
-            )
-
-    # [system]
-    if "system" not in data:
-        raise ConfigError("config: [system]: missing section (A, C, Q, R and lam are required)")
-    sys_t = _check_keys("system", data["system"], _SCHEMA["system"])
-    mats = {k: _matrix("system", k, _require("system", sys_t, k)) for k in ("A", "C", "Q", "R")}
-    n = mats["A"].shape[0]
-    if mats["A"].shape != (n, n):
-        raise _err("system", "A", f"must be square, found shape {mats['A'].shape}")
-    if mats["C"].shape[1] != n:
-        raise _err("system", "C", f"must have {n} columns (A is {n}x{n}), found shape {mats['C'].shape}")
-    m = mats["C"].shape[0]
-    if mats["Q"].shape != (n, n):
-        raise _err("system", "Q", f"must be {n}x{n} like A, found shape {mats['Q'].shape}")
-    if mats["R"].shape != (m, m):
-        raise _err("system", "R", f"must be {m}x{m} (C has {m} rows), found shape {mats['R'].shape}")
-    lam = _real("system", "lam", _require("system", sys_t, "lam", "arrival probability at low power"))
-    if not 0 < lam < 1:
-        raise _err("system", "lam", f"must lie in (0, 1), got {lam}")
-    try:
-        system = LinearSystem(mats["A"], mats["C"], mats["Q"], mats["R"])
-    except (TypeError, ValueError) as exc:
-        # Q not PSD, R not PD, (A, C) not detectable, ...: name the key if the message does.
-        msg = str(exc)
-        key = next((k for k in ("(A, C)", "A", "C", "Q", "R") if msg.startswith((k + " ", k + ":"))), None)
-        if key is None:
-            raise _err("system", None, msg) from None
-        raise _err("system", key.strip("()"), _strip_name(msg, key)) from None
-
-    # [energy]
-    if "energy" not in data:
-        raise ConfigError('config: [energy]: missing section (give ratio = "p/q", or Psi, Delta, delta)')
-    en = _check_keys("energy", data["energy"], _SCHEMA["energy"])
-    trio = [k for k in ("Psi", "Delta", "delta") if k in en]
-    if "ratio" in en and trio:
-        raise _err("energy", trio[0], "give either ratio or Psi, Delta, delta, not both")
-    if "ratio" in en:
-        ratio = _fraction("energy", "ratio", en["ratio"])
-        if not 0 < ratio < 1:
-            raise _err("energy", "ratio", f"must lie strictly between 0 and 1, got {ratio}")
-    elif trio:
-        vals = {
-            k: _fraction("energy", k, _require("energy", en, k, "Psi, Delta and delta go together"))
-            for k in ("Psi", "Delta", "delta")
-        }
-        try:
-            ratio = energy_ratio(vals["Psi"], vals["Delta"], vals["delta"])
-        except ValueError as exc:
-            raise _err("energy", None, str(exc)) from None
-    else:
-        raise _err("energy", "ratio", 'missing (give ratio = "p/q", or Psi, Delta, delta)')
-
-    # [online]
-    on = _check_keys("online", data.get("online", {}), _SCHEMA["online"])
-    design = on.get("design", "z0" not in on and "mu" not in on)
-    if not isinstance(design, bool):
-        raise _err("online", "design", f"must be true or false, got {_kind(design)} {design!r}")
-    if design:
-        for k in ("z0", "mu"):
-            if k in on:
-                raise _err("online", k, "cannot be given with design = true (the design fixes z0 and mu)")
-        try:
-            online = design_online(lam, ratio)
-        except ValueError as exc:
-            raise _err("energy", "ratio", str(exc)) from None
-    else:
-        z0 = _int("online", "z0", _require("online", on, "z0", "or set design = true"), 1)
-        mu = _real("online", "mu", on.get("mu", 1.0))
-        if not 0 <= mu <= 1:
-            raise _err("online", "mu", f"must lie in [0, 1], got {mu}")
-        online = OnlineDesign(z0, mu)
-
-    # [attack]
-    at = _check_keys("attack", data.get("attack", {}), _SCHEMA["attack"])
-    attacks: list[AttackSpec] = []
-    if "betas" in at:
-        betas = at["betas"]
-        if not isinstance(betas, list):
-            raise _err("attack", "betas", f'must be an array such as ["1/5", "2/3"], got {_kind(betas)}')
-        for i, b in enumerate(betas):
-            try:
-                spec = parse_attack(b, "beta")
-            except (TypeError, ValueError) as exc:
-                raise _err("attack", f"betas[{i}]", _strip_name(str(exc), "beta")) from None
-            if spec in attacks:
-                raise _err("attack", f"betas[{i}]", f"{spec.label} is listed twice")
-            attacks.append(spec)
-    t_max = None
-    if "sweep" in at:
-        sw = _check_keys("attack.sweep", at["sweep"], _SWEEP_KEYS)
-        t_max = _int("attack.sweep", "t_max", _require("attack.sweep", sw, "t_max"), 2)
-        if t_max > 100_000:
-            raise _err("attack.sweep", "t_max", f"must be at most 100000 (about 3e9 fractions), got {t_max}")
-
-    # [montecarlo]
-    mc = None
-    if "montecarlo" in data:
-        mt = _check_keys("montecarlo", data["montecarlo"], _SCHEMA["montecarlo"])
-        d = MonteCarloConfig()
-        seed = _int("montecarlo", "seed", mt.get("seed", d.seed), 0)
-        mode = mt.get("mode", d.mode)
-        if mode not in ("covariance", "state"):
-            raise _err("montecarlo", "mode", f'must be "covariance" or "state", got {mode!r}')
-        protocol = mt.get("protocol", d.protocol)
-        if protocol not in ("A", "B"):
-            raise _err("montecarlo", "protocol", f'must be "A" or "B", got {protocol!r}')
-        mc = MonteCarloConfig(
-            runs=_int("montecarlo", "runs", mt.get("runs", d.runs), 2),
-            horizon=_int("montecarlo", "horizon", mt.get("horizon", d.horizon), 1),
-            seed=seed,
-            mode=mode,
-            protocol=protocol,
-        )
-    return Config(system, lam, ratio, online, design, tuple(attacks), t_max, mc, source, data)
+    _check_sections(data)
+    system_table = _section(data, "system")
+    matrices = _system_matrices(system_table)
+    lam = _lam(system_table)
+    system = _linear_system(matrices)
+    ratio = _energy_ratio(_section(data, "energy"))
+    online, designed = _online(_section(data, "online"), lam, ratio)
+    attack_table = _section(data, "attack")
+    return Config(
+        system=system,
+        lam=lam,
+        ratio=ratio,
+        online=online,
+        designed=designed,
+        attacks=_attacks(attack_table),
+        sweep_t_max=_sweep_t_max(attack_table),
+        montecarlo=_montecarlo(data),
+        source=source,
+        raw=data,
+    )
 
 
 def load_config(path: str | Path) -> Config:

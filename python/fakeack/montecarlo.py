@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from . import _fakeack
-from ._validate import as_int, as_probability, as_ratio
+from ._validate import MODES, PROTOCOLS, as_int, as_probability, as_ratio
 from .attacks import MaskBlocking, PeriodicBlocking, as_attack, core_attack
 from .schedules import design_online, offline_schedule
 from .system import _core
@@ -316,9 +316,9 @@ def simulate(
     seed = as_int("seed", seed, minimum=0)
     if seed >= 2**64:
         raise ValueError(f"seed must be below 2**64, got {seed}")
-    if mode not in ("covariance", "state"):
+    if mode not in MODES:
         raise ValueError(f"mode must be 'covariance' or 'state', got {mode!r}")
-    if protocol not in ("A", "B"):
+    if protocol not in PROTOCOLS:
         raise ValueError(f"protocol must be 'A' or 'B', got {protocol!r}")
     if isinstance(sched, OfflineSchedule):
         kind, p, q, z0, mu = "offline", sched.ratio.numerator, sched.ratio.denominator, 1, 1.0

@@ -202,28 +202,10 @@ def plot_beta_sweep(
     matplotlib.figure.Figure
         The figure holding ``ax``.
     """
-    from matplotlib.lines import Line2D
-
     fig, ax = _new_axes(ax, (7.0, 4.6))
     beta = np.asarray(sweep.beta, dtype=float)
     j = np.asarray(sweep.j_attack, dtype=float)
-    t = np.asarray(sweep.t, dtype=float)
-    t_max = int(t.max()) if len(t) else 0
-    handles: list[Any] = []
-    sc = ax.scatter(beta, j, c=t, s=5, cmap="viridis", lw=0, zorder=3)
-    cb = fig.colorbar(sc, ax=ax, pad=0.01)
-    cb.set_label("attack period $t$ (flag-ACKs)")
-    handles.append(
-        Line2D(
-            [],
-            [],
-            ls="none",
-            marker="o",
-            ms=4,
-            color=sc.cmap(0.45),
-            label=rf"$J(\tilde\theta_\mathrm{{on}})$, attack $r/t$ with $t \leq {t_max}$",
-        )
-    )
+    handles = _sweep_points(fig, ax, beta, j, np.asarray(sweep.t, dtype=float))
     if limit_beta is not None and limit_j is not None:
         handles += ax.plot(
             limit_beta,
@@ -233,79 +215,9 @@ def plot_beta_sweep(
             zorder=4,
             label=r"large-period limit $J_\infty(\beta)$",
         )
-    handles.append(
-        ax.axhline(
-            sweep.j_offline,
-            color="#D55E00",
-            lw=1.3,
-            ls="--",
-            zorder=2,
-            label=rf"offline $J(\theta^\star_\mathrm{{off}})$ = {sweep.j_offline:.4f}",
-        )
-    )
-    handles.append(
-        ax.axhline(
-            sweep.j_online,
-            color="#0072B2",
-            lw=1.3,
-            ls=":",
-            zorder=2,
-            label=rf"online, no attack $J(\theta_\mathrm{{on}})$ = {sweep.j_online:.4f}",
-        )
-    )
+    handles += _cost_lines(ax, sweep)
     if bar is not None:
-        if np.isfinite(bar.j_max):
-            # Every flag-ACK blocked: the end point beta = 1 of the limit curve.
-            handles += ax.plot(
-                1.0,
-                bar.j_max,
-                marker="D",
-                ms=5,
-                color="black",
-                ls="none",
-                zorder=5,
-                clip_on=False,
-                label=rf"all blocked ($\beta$ = 1): $J_\max$ = {bar.j_max:.4f}",
-            )
-        handles.append(
-            ax.axvline(
-                bar.limit,
-                color="#CC79A7",
-                lw=1.3,
-                ls="-.",
-                zorder=2,
-                label=rf"$\bar\beta$ (large-period limit) = {bar.limit:.4f}",
-            )
-        )
-        ax.annotate(
-            rf"$\bar\beta$ = {bar.limit:.3f}",
-            xy=(bar.limit, 0.075),
-            xycoords=("data", "axes fraction"),
-            xytext=(4, 0),
-            textcoords="offset points",
-            color="#CC79A7",
-            fontsize=8,
-            ha="left",
-            va="bottom",
-        )
-        if bar.finite is not None:
-            fb = bar.finite
-            sel = (np.asarray(sweep.r) == fb.numerator) & (np.asarray(sweep.t) == fb.denominator)
-            if sel.any():
-                jf = float(j[sel][0])
-                handles += ax.plot(
-                    float(fb),
-                    jf,
-                    marker="*",
-                    ms=12,
-                    color="#CC79A7",
-                    mec="black",
-                    mew=0.6,
-                    ls="none",
-                    zorder=5,
-                    label=rf"$\bar\beta$ ($t \leq {bar.t_max}$) = {fb.numerator}/{fb.denominator}"
-                    rf" = {float(fb):.4f}",
-                )
+        handles += _threshold_marks(ax, bar, sweep, j)
     if paper_beta_bar is not None:
         handles.append(
             ax.axvline(
@@ -318,6 +230,92 @@ def plot_beta_sweep(
             )
         )
     ax.set_xlim(0, 1)
+    ax.set_ylim(*_cost_range(sweep, j, bar, limit_j))
+    ax.set_xlabel(r"attacker budget $\beta = r/t$ (fraction of flag-ACKs blocked)")
+    ax.set_ylabel(r"$J$ (stationary $\mathrm{Tr}\,\mathbb{E}[P_k]$)")
+    ax.grid(True, lw=0.4, alpha=0.5)
+    ax.legend(handles=handles, loc="upper left", fontsize=7.5, framealpha=1.0)
+    if title:
+        ax.set_title(title, fontsize=10)
+    return fig
+
+
+def _sweep_points(fig: Figure, ax: Axes, beta: np.ndarray, j: np.ndarray, t: np.ndarray) -> list[Any]:
+    """Every r/t of the sweep as a dot coloured by its period t; returns the legend handle."""
+    from matplotlib.lines import Line2D
+
+    t_max = int(t.max()) if len(t) else 0
+    scatter = ax.scatter(beta, j, c=t, s=5, cmap="viridis", lw=0, zorder=3)
+    colorbar = fig.colorbar(scatter, ax=ax, pad=0.01)
+    colorbar.set_label("attack period $t$ (flag-ACKs)")
+    label = rf"$J(\tilde\theta_\mathrm{{on}})$, attack $r/t$ with $t \leq {t_max}$"
+    return [Line2D([], [], ls="none", marker="o", ms=4, color=scatter.cmap(0.45), label=label)]
+
+
+def _cost_lines(ax: Axes, sweep: BetaSweep) -> list[Any]:
+    """J_offline and J_online (no attack) as horizontal lines."""
+    off_label = rf"offline $J(\theta^\star_\mathrm{{off}})$ = {sweep.j_offline:.4f}"
+    on_label = rf"online, no attack $J(\theta_\mathrm{{on}})$ = {sweep.j_online:.4f}"
+    return [
+        ax.axhline(sweep.j_offline, color="#D55E00", lw=1.3, ls="--", zorder=2, label=off_label),
+        ax.axhline(sweep.j_online, color="#0072B2", lw=1.3, ls=":", zorder=2, label=on_label),
+    ]
+
+
+def _threshold_marks(ax: Axes, bar: BetaBar, sweep: BetaSweep, j: np.ndarray) -> list[Any]:
+    """J_max at beta = 1, the limit threshold as a vertical line, the finite one as a star."""
+    handles: list[Any] = []
+    if np.isfinite(bar.j_max):
+        # Every flag-ACK blocked: the end point beta = 1 of the limit curve.
+        handles += ax.plot(
+            1.0,
+            bar.j_max,
+            marker="D",
+            ms=5,
+            color="black",
+            ls="none",
+            zorder=5,
+            clip_on=False,
+            label=rf"all blocked ($\beta$ = 1): $J_\max$ = {bar.j_max:.4f}",
+        )
+    limit_label = rf"$\bar\beta$ (large-period limit) = {bar.limit:.4f}"
+    handles.append(ax.axvline(bar.limit, color="#CC79A7", lw=1.3, ls="-.", zorder=2, label=limit_label))
+    ax.annotate(
+        rf"$\bar\beta$ = {bar.limit:.3f}",
+        xy=(bar.limit, 0.075),
+        xycoords=("data", "axes fraction"),
+        xytext=(4, 0),
+        textcoords="offset points",
+        color="#CC79A7",
+        fontsize=8,
+        ha="left",
+        va="bottom",
+    )
+    finite = bar.finite
+    if finite is None:
+        return handles
+    match = (np.asarray(sweep.r) == finite.numerator) & (np.asarray(sweep.t) == finite.denominator)
+    if match.any():
+        label = rf"$\bar\beta$ ($t \leq {bar.t_max}$) = {finite} = {float(finite):.4f}"
+        handles += ax.plot(
+            float(finite),
+            float(j[match][0]),
+            marker="*",
+            ms=12,
+            color="#CC79A7",
+            mec="black",
+            mew=0.6,
+            ls="none",
+            zorder=5,
+            label=label,
+        )
+    return handles
+
+
+def _cost_range(
+    sweep: BetaSweep, j: np.ndarray, bar: BetaBar | None, limit_j: np.ndarray | None
+) -> tuple[float, float]:
+    """The y-range: every drawn cost, with a 5% margin."""
     lo = min(float(np.min(j)) if len(j) else sweep.j_online, sweep.j_online)
     hi = float(np.max(j)) if len(j) else sweep.j_offline
     if limit_j is not None and len(limit_j):
@@ -327,14 +325,7 @@ def plot_beta_sweep(
     if bar is not None and np.isfinite(bar.j_max) and limit_j is None:
         hi = max(hi, bar.j_max)
     pad = 0.05 * (hi - lo if hi > lo else 1.0)
-    ax.set_ylim(lo - pad, hi + pad)
-    ax.set_xlabel(r"attacker budget $\beta = r/t$ (fraction of flag-ACKs blocked)")
-    ax.set_ylabel(r"$J$ (stationary $\mathrm{Tr}\,\mathbb{E}[P_k]$)")
-    ax.grid(True, lw=0.4, alpha=0.5)
-    ax.legend(handles=handles, loc="upper left", fontsize=7.5, framealpha=1.0)
-    if title:
-        ax.set_title(title, fontsize=10)
-    return fig
+    return lo - pad, hi + pad
 
 
 def plot_stationary(
@@ -405,18 +396,9 @@ def plot_stationary(
         ylabels = [f"{v}: {'block' if v < r else 'pass'}" for v in range(n_sig)]
     from matplotlib.patches import Patch
 
-    # Put the key in a corner made of non-states (the paper's chains leave the low-counter,
-    # long-tau corner empty); otherwise below the axes.
-    k = min(3, n_tau)
-    if np.all(np.isnan(grid[0, -k:])):
-        where: dict[str, Any] = {"loc": "lower right"}
-    elif np.all(np.isnan(grid[-1, -k:])):
-        where = {"loc": "upper right"}
-    else:
-        where = {"loc": "upper right", "bbox_to_anchor": (1.0, -0.14)}
     ax.legend(
         handles=[Patch(facecolor="white", edgecolor="0.6", hatch="///", label="not a state")],
-        **where,
+        **_key_location(grid),
         fontsize=8,
         framealpha=1.0,
     )
@@ -432,6 +414,19 @@ def plot_stationary(
     if title:
         ax.set_title(title, fontsize=10)
     return fig
+
+
+def _key_location(grid: np.ndarray) -> dict[str, Any]:
+    """Where the heat map's key goes: a corner made of non-states, else below the axes.
+
+    The paper's chains leave the low-counter, long-tau corner empty.
+    """
+    k = min(3, grid.shape[1])
+    if np.all(np.isnan(grid[0, -k:])):
+        return {"loc": "lower right"}
+    if np.all(np.isnan(grid[-1, -k:])):
+        return {"loc": "upper right"}
+    return {"loc": "upper right", "bbox_to_anchor": (1.0, -0.14)}
 
 
 def _hatch_background(ax: Axes, n_tau: int, n_sig: int) -> Any:

@@ -68,7 +68,7 @@ def offline_schedule(ratio: Any) -> np.ndarray:
 
     With :math:`s_0 = \lfloor q/p \rfloor - 1`, the period holds :math:`m = q - p(s_0+1)` blocks
     ``1 0...0`` of length :math:`s_0+2` followed by :math:`n = p(s_0+2) - q` blocks of length
-    :math:`s_0+1` (ERRATA item 1: the printed pattern swaps m and n).
+    :math:`s_0+1` (Model note 1: the printed pattern swaps m and n).
 
     Parameters
     ----------
@@ -130,7 +130,7 @@ def _check_online(lam: Any, z0: Any, mu: Any) -> tuple[float, int, float]:
 def j_online(system: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
     r"""Cost J of the ACK-based online schedule :math:`\theta_{\mathrm{on}}` (Theorem 4.5 of [1]_).
 
-    Corrected as in ERRATA item 2, with :math:`a = 1-\lambda`:
+    Corrected as in Model note 2, with :math:`a = 1-\lambda`:
 
     .. math::
        J = \frac{\lambda\big[\sum_{i=0}^{z_0} a^i\,\mathrm{tr}_i + (1-\mu)\,a^{z_0+1}
@@ -159,7 +159,7 @@ def j_online(system: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
 
 
 def online_high_power_rate(lam: Any, z0: Any, mu: Any = 1.0) -> float:
-    r"""Long-run fraction of steps at high power under :math:`\theta_{\mathrm{on}}` (ERRATA item 2).
+    r"""Long-run fraction of steps at high power under :math:`\theta_{\mathrm{on}}` (Model note 2).
 
     .. math:: \frac{\lambda a^{z_0}(\mu + (1-\mu)a)}{1 - \mu a^{z_0+1} - (1-\mu)a^{z_0+2}}
 
@@ -302,7 +302,7 @@ def j_max(system: Any, lam: Any) -> float:
     Returns
     -------
     float
-        ``math.inf`` when :math:`(1-\lambda)\rho(A)^2 \ge 1` (ERRATA item 5: the printed condition
+        ``math.inf`` when :math:`(1-\lambda)\rho(A)^2 \ge 1` (Model note 5: the printed condition
         :math:`(1-\lambda)\rho(A) < 1` is wrong).
     """
     core = _core(system)

@@ -14,12 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from ._cli_io import _frac
 from .attack import j_attack
-from .config import (
-    AttackSpec,
-    MonteCarloConfig,
-)
+from .attacks import PeriodicBlocking
+from .config import MonteCarloConfig
 from .montecarlo import OfflineSchedule, OnlineSchedule, SimulationResult, expected_trace_curve, simulate
 from .schedules import (
     OnlineDesign,
@@ -42,7 +39,7 @@ DEFAULT_OUT = "fakeack-out"
 PAPER_SYSTEM = {"A": 1.2, "C": 0.7, "Q": 0.8, "R": 0.8}
 PAPER_LAM = 0.5
 PAPER_RATIO = Fraction(1, 7)
-PAPER_ATTACKS = (AttackSpec(1, 5), AttackSpec(2, 3))
+PAPER_ATTACKS = (PeriodicBlocking(1, 5), PeriodicBlocking(2, 3))
 PAPER_PRINTED = {
     "j_offline": "2.0953",
     "j_online": "1.6399",
@@ -51,7 +48,7 @@ PAPER_PRINTED = {
 }
 PAPER_BETA_BAR = 0.28
 # The heat map of the stationary law: a longer attack than the paper's 2/3 shows more structure.
-STATIONARY_EXAMPLE = AttackSpec(4, 9)
+STATIONARY_EXAMPLE = PeriodicBlocking(4, 9)
 
 FLAG_SIGMAS = 4.0
 
@@ -123,10 +120,9 @@ class Analysis:
     ratio: Fraction
     online: OnlineDesign
     designed: bool
-    attacks: tuple[AttackSpec, ...]
+    attacks: tuple[PeriodicBlocking, ...]
     horizon: int
     mc: MonteCarloConfig | None
-    mc_note: str | None
     rows: list[Row]
     curves: list[Curve]
     j_off: float
@@ -151,42 +147,10 @@ def _exact_j_max_curve(s: LinearSystem, lam: float, horizon: int) -> np.ndarray:
     return np.cumsum(trace) / k
 
 
-def _custom_threshold(
-    s: LinearSystem, lam: float, ratio: Fraction, z0: int, mu: float, t_max: int
-) -> tuple[BetaSweep, BetaBar]:
-    """beta_sweep / beta_bar for an online schedule that is not the energy-matched design."""
-    pairs = sorted(
-        ((r, t) for t in range(2, t_max + 1) for r in range(1, t) if math.gcd(r, t) == 1),
-        key=lambda p: Fraction(*p),
-    )
-    rr = np.array([p[0] for p in pairs], dtype=np.uint32)
-    tt = np.array([p[1] for p in pairs], dtype=np.uint32)
-    jj = np.array([j_attack(s, lam, z0, r, t, mu) for r, t in pairs])
-    joff, jon, jmx = j_offline(s, lam, ratio), j_online(s, lam, z0, mu), j_max(s, lam)
-    sw = BetaSweep(rr, tt, rr / tt, jj, joff, jon, z0, mu, lam, ratio)
-    hit = np.nonzero(jj >= joff)[0]
-    finite = Fraction(int(rr[hit[0]]), int(tt[hit[0]])) if len(hit) else None
-    # Root of J_inf(beta) = J_off by bisection (J_inf is a weighted mean of J_on and J_max,
-    # increasing in beta).
-    lo, hi = 0.0, 1.0
-    if jon >= joff:
-        limit = 0.0
-    elif not jmx > joff:
-        limit = 1.0
-    else:
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            if j_attack_limit(s, lam, z0, mid, mu) < joff:
-                lo = mid
-            else:
-                hi = mid
-        limit = 0.5 * (lo + hi)
-    return sw, BetaBar(finite, limit, t_max, joff, jon, jmx, z0, mu)
-
-
-def _run_mc(
-    s: LinearSystem, lam: float, sched: Any, mc: MonteCarloConfig, attack: AttackSpec | None
+def run_monte_carlo(
+    s: LinearSystem, lam: float, sched: Any, mc: MonteCarloConfig, attack: PeriodicBlocking | None
 ) -> SimulationResult:
+    """:func:`fakeack.simulate` with the settings of ``mc``."""
     return simulate(
         s,
         lam,
@@ -194,10 +158,121 @@ def _run_mc(
         horizon=mc.horizon,
         runs=mc.runs,
         seed=mc.seed,
-        attack=None if attack is None else (attack.r, attack.t),
+        attack=attack,
         mode=mc.mode,
         protocol=mc.protocol,
     )
+
+
+@dataclass(frozen=True)
+class _Case:
+    """One schedule of the study: a table row and a J_k curve."""
+
+    key: str
+    label: str
+    curve_label: str
+    schedule: OfflineSchedule | OnlineSchedule
+    attack: PeriodicBlocking | None
+    stationary: float
+
+
+def _cases(
+    s: LinearSystem, lam: float, ratio: Fraction, online: OnlineDesign, attacks: Sequence[PeriodicBlocking]
+) -> list[_Case]:
+    """Offline, online without attack, then online under each attack."""
+    z0, mu = online
+    on = OnlineSchedule(z0, mu)
+    cases = [
+        _Case("j_offline", "J_offline", "offline", OfflineSchedule(ratio), None, j_offline(s, lam, ratio)),
+        _Case("j_online", "J_online", "online, no attack", on, None, j_online(s, lam, z0, mu)),
+    ]
+    for a in attacks:
+        cases.append(
+            _Case(
+                f"j_attack_{a.label}",
+                f"J_attack beta={a.label}",
+                f"online, attack $\\beta$ = {a.label}",
+                on,
+                a,
+                j_attack(s, lam, z0, a.r, a.t, mu),
+            )
+        )
+    return cases
+
+
+def _evaluate(
+    case: _Case, s: LinearSystem, lam: float, horizon: int, mc: MonteCarloConfig | None, paper: dict[str, str]
+) -> tuple[Row, Curve]:
+    """The case's stationary, exact finite-horizon and (if ``mc``) Monte Carlo cost."""
+    exact = expected_trace_curve(s, lam, case.schedule, horizon, case.attack).j_k
+    row = Row(
+        case.key,
+        case.label,
+        analytic=case.stationary,
+        exact_h=float(exact[-1]),
+        mc_text="skipped" if mc is None else "-",
+        paper=paper.get(case.key, "-"),
+    )
+    mc_curve = None
+    if mc is not None:
+        result = run_monte_carlo(s, lam, case.schedule, mc, case.attack)
+        row.mc, row.mc_stderr, mc_curve = result.j, result.stderr, result.j_k
+    return row, Curve(case.curve_label, exact, mc_curve, case.stationary)
+
+
+def sweep_and_thresholds(
+    system: LinearSystem, lam: float, ratio: Fraction, online: OnlineDesign | None, t_max: int
+) -> tuple[BetaSweep, BetaBar]:
+    """The beta sweep and both thresholds, for the online schedule given or (None) designed."""
+    z0, mu = (None, None) if online is None else online
+    return (
+        beta_sweep(system, lam, ratio, t_max, z0=z0, mu=mu),
+        beta_bar(system, lam, ratio, t_max, z0=z0, mu=mu),
+    )
+
+
+def _threshold_rows(bar: BetaBar, paper: dict[str, str]) -> list[Row]:
+    """Both beta-bar rows (no Monte Carlo of a threshold)."""
+    finite, t_max = bar.finite, bar.t_max
+    return [
+        Row(
+            "beta_bar_limit",
+            "beta-bar (large-period limit)",
+            analytic=bar.limit,
+            mc_text="n/a",
+            paper=paper.get("beta_bar_limit", "-"),
+        ),
+        Row(
+            "beta_bar_finite",
+            f"beta-bar (t<={t_max})",
+            analytic=None if finite is None else float(finite),
+            analytic_text=f"none with t<={t_max}" if finite is None else f"{finite} = {float(finite):.6f}",
+            mc_text="n/a",
+            paper=paper.get("beta_bar_finite", "-"),
+        ),
+    ]
+
+
+def _decisions(
+    s: LinearSystem, lam: float, online: OnlineDesign, attacks: Sequence[PeriodicBlocking], j_off: float
+) -> list[dict[str, Any]]:
+    """For each attack: the schedule to use against it, and against the worst attack of its budget."""
+    z0, mu = online
+    decisions = []
+    for a in attacks:
+        j_pattern = j_attack(s, lam, z0, a.r, a.t, mu)
+        j_worst = j_attack_limit(s, lam, z0, a.beta, mu)
+        decisions.append(
+            {
+                "attack": a.label,
+                "beta": float(a.beta),
+                "j_attack": j_pattern,
+                "j_attack_limit": j_worst,
+                "choice_against_pattern": "online" if j_pattern < j_off else "offline",
+                "choice_against_worst_case": "online" if j_worst < j_off else "offline",
+            }
+        )
+    return decisions
 
 
 def analyse(
@@ -206,7 +281,7 @@ def analyse(
     ratio: Fraction,
     online: OnlineDesign,
     designed: bool,
-    attacks: Sequence[AttackSpec],
+    attacks: Sequence[PeriodicBlocking],
     t_max: int | None,
     mc: MonteCarloConfig | None,
     horizon: int = DEFAULT_HORIZON,
@@ -227,7 +302,7 @@ def analyse(
         ``(z0, mu)`` of the online schedule.
     designed : bool
         Whether ``online`` is :func:`fakeack.design_online` ``(lam, ratio)``.
-    attacks : sequence of AttackSpec
+    attacks : sequence of PeriodicBlocking
         The attacks to evaluate.
     t_max : int or None
         Largest attack period of the sweep; None skips sweep and thresholds.
@@ -244,111 +319,41 @@ def analyse(
     """
     start = time.perf_counter()
     paper = paper or {}
-    z0, mu = online
-    mc_note = None
     H = mc.horizon if mc is not None else horizon
-    off, on = OfflineSchedule(ratio), OnlineSchedule(z0, mu)
-    j_off, j_on, jmx = j_offline(s, lam, ratio), j_online(s, lam, z0, mu), j_max(s, lam)
-
-    specs: list[tuple[str, str, Any, AttackSpec | None, float]] = [
-        ("j_offline", "J_offline", off, None, j_off),
-        ("j_online", "J_online", on, None, j_on),
-    ]
-    for a in attacks:
-        specs.append(
-            (f"j_attack_{a.label}", f"J_attack beta={a.label}", on, a, j_attack(s, lam, z0, a.r, a.t, mu))
-        )
-
+    cases = _cases(s, lam, ratio, online, attacks)
+    j_off, j_on, j_all_blocked = cases[0].stationary, cases[1].stationary, j_max(s, lam)
     rows: list[Row] = []
     curves: list[Curve] = []
-    for key, label, sched, a, stat in specs:
-        atk = None if a is None else (a.r, a.t)
-        exact = expected_trace_curve(s, lam, sched, H, atk).j_k
-        row = Row(key, label, analytic=stat, exact_h=float(exact[-1]), paper=paper.get(key, "-"))
-        res = None
-        if mc is not None:
-            res = _run_mc(s, lam, sched, mc, a)
-            row.mc, row.mc_stderr = res.j, res.stderr
+    for case in cases:
+        row, curve = _evaluate(case, s, lam, H, mc, paper)
         rows.append(row)
-        name = "offline" if a is None and sched is off else "online, no attack"
-        if a is not None:
-            name = f"online, attack $\\beta$ = {a.label}"
-        curves.append(Curve(name, exact, None if res is None else res.j_k, stat))
+        curves.append(curve)
+    exact_j_max = float(_exact_j_max_curve(s, lam, H)[-1])
+    paper_j_max = paper.get("j_max", "-")
     rows.append(
-        Row(
-            "j_max",
-            "J_max (all blocked)",
-            analytic=jmx,
-            exact_h=float(_exact_j_max_curve(s, lam, H)[-1]),
-            mc_text="-",
-            paper=paper.get("j_max", "-"),
-        )
+        Row("j_max", "J_max (all blocked)", analytic=j_all_blocked, exact_h=exact_j_max, paper=paper_j_max)
     )
 
     sweep = bar = None
     if t_max is not None:
-        if designed:
-            sweep, bar = beta_sweep(s, lam, ratio, t_max), beta_bar(s, lam, ratio, t_max)
-        else:
-            sweep, bar = _custom_threshold(s, lam, ratio, z0, mu, t_max)
-        rows.append(
-            Row(
-                "beta_bar_limit",
-                "beta-bar (large-period limit)",
-                analytic=bar.limit,
-                mc_text="n/a",
-                paper=paper.get("beta_bar_limit", "-"),
-            )
-        )
-        fin = bar.finite
-        rows.append(
-            Row(
-                "beta_bar_finite",
-                f"beta-bar (t<={t_max})",
-                analytic=None if fin is None else float(fin),
-                analytic_text=f"none with t<={t_max}" if fin is None else f"{_frac(fin)} = {float(fin):.6f}",
-                mc_text="n/a",
-                paper=paper.get("beta_bar_finite", "-"),
-            )
-        )
-
-    decisions = []
-    for a in attacks:
-        ja = j_attack(s, lam, z0, a.r, a.t, mu)
-        jl = j_attack_limit(s, lam, z0, a.beta, mu)
-        decisions.append(
-            {
-                "attack": a.label,
-                "beta": float(a.beta),
-                "j_attack": ja,
-                "j_attack_limit": jl,
-                "choice_against_pattern": "online" if ja < j_off else "offline",
-                "choice_against_worst_case": "online" if jl < j_off else "offline",
-            }
-        )
-    for r in rows:
-        if r.mc is None and r.key.startswith("j_") and r.key != "j_max" and mc is None:
-            r.mc_text = "skipped"
+        sweep, bar = sweep_and_thresholds(s, lam, ratio, None if designed else online, t_max)
+        rows += _threshold_rows(bar, paper)
     return Analysis(
-        s,
-        lam,
-        ratio,
-        online,
-        designed,
-        tuple(attacks),
-        H,
-        mc,
-        mc_note,
-        rows,
-        curves,
-        j_off,
-        j_on,
-        jmx,
-        sweep,
-        bar,
-        decisions,
-        time.perf_counter() - start,
+        system=s,
+        lam=lam,
+        ratio=ratio,
+        online=online,
+        designed=designed,
+        attacks=tuple(attacks),
+        horizon=H,
+        mc=mc,
+        rows=rows,
+        curves=curves,
+        j_off=j_off,
+        j_on=j_on,
+        j_max=j_all_blocked,
+        sweep=sweep,
+        bar=bar,
+        decisions=_decisions(s, lam, online, attacks, j_off),
+        elapsed=time.perf_counter() - start,
     )
-
-
-# ------------------------------------------------------------------------------- formatting

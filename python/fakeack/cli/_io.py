@@ -1,4 +1,4 @@
-"""Output plumbing of the command line: errors, atomic writes, JSON helpers."""
+"""Output plumbing of the command line: atomic file writes, stdout-or-file, JSON."""
 
 from __future__ import annotations
 
@@ -14,16 +14,7 @@ from typing import Any
 
 import numpy as np
 
-
-class CliError(Exception):
-    """A failure reported as ``fakeack: error: ...`` with its own exit code."""
-
-    def __init__(self, message: str, code: int = 1):
-        super().__init__(message)
-        self.code = code
-
-
-# ------------------------------------------------------------------------------- file output
+__all__ = ["atomic_write", "emit", "to_json"]
 
 
 def _default_mode(path: Path) -> int:
@@ -73,7 +64,7 @@ def atomic_write(path: str | os.PathLike[str], data: bytes | str) -> Path:
     return p
 
 
-def _emit(text: str, out: str | None) -> None:
+def emit(text: str, out: str | None) -> None:
     """Print ``text`` or write it atomically to ``out``."""
     if out is None:
         sys.stdout.write(text if text.endswith("\n") else text + "\n")
@@ -99,18 +90,12 @@ def _jsonable(x: Any) -> Any:
         v = float(x)
         return v if math.isfinite(v) else None
     if isinstance(x, Fraction):
-        return _frac(x)
+        return str(x)
     if isinstance(x, Path):
         return str(x)
     return x
 
 
-def _dumps(obj: Any) -> str:
+def to_json(obj: Any) -> str:
+    """``obj`` as indented JSON (numpy values as plain numbers, inf and NaN as null, "p/q" fractions)."""
     return json.dumps(_jsonable(obj), indent=2, allow_nan=False)
-
-
-def _frac(x: Fraction) -> str:
-    return str(x.numerator) if x.denominator == 1 else f"{x.numerator}/{x.denominator}"
-
-
-
