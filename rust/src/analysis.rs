@@ -26,7 +26,7 @@ use crate::chain::AttackChain;
 use crate::error::{Error, Result};
 use crate::general::general_attack_chain;
 use crate::montecarlo::{self, McConfig, McResult, McSchedule};
-use crate::online::{check_lam, OnlineDesign};
+use crate::online::{check_lam, OnlineDesign, Walk};
 use crate::pattern::{self, tau_needed, Segments};
 use crate::riccati::LinearSystem;
 use crate::schedules::{self, offline_schedule, Ratio};
@@ -79,7 +79,7 @@ pub fn flag_rates(lam: f64, design: OnlineDesign, attack: Option<&Attack>) -> Re
         });
     }
     let depth = attack.map_or(0, Segments::depth);
-    let seg = Segments::masses_only(lam, design, depth)?;
+    let seg = Segments::masses_only(&Walk::new(lam, design, 0.0)?, depth)?;
     let (sent, delivered) = seg.attack_flag_rates(attack)?;
     Ok(FlagRates { sent, delivered })
 }

@@ -14,9 +14,9 @@ pub const MAX_MASK: usize = 10_000_000;
 
 /// An attack on the flag-ACKs.
 ///
-/// Further kinds of attack (blocking each flag independently, forging flag-ACKs) become new
-/// variants; every consumer matches on the enum, so the compiler lists what each must handle.
-#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+/// Further kinds of attack become new variants; every consumer matches on the enum, so the
+/// compiler lists what each must handle.
+#[derive(Debug, Clone, PartialEq)]
 #[non_exhaustive]
 pub enum Attack {
     /// Block the first `r` of every `t` flag-ACKs: the paper's Algorithm 1, read as blocking r of
@@ -29,6 +29,21 @@ pub enum Attack {
     },
     /// Block the flag-ACK counted σ in each period of `mask.len()` flags whenever `mask[σ]`.
     Mask(Vec<bool>),
+    /// Block each flag-ACK independently with probability `beta`: a memoryless jammer with no
+    /// counter.
+    Random {
+        /// Probability of blocking each flag-ACK, in [0, 1].
+        beta: f64,
+    },
+    /// On every step on which the detector sends no flag-ACK, forge one with probability
+    /// `gamma` (Type B: a forged flag packet; Type A: the ACK bit flipped to 1); the sensor then
+    /// uses high power on the next step. `block`, if any, attacks the genuine flags.
+    Injection {
+        /// Probability of a forged flag-ACK on a step without a genuine one, in [0, 1].
+        gamma: f64,
+        /// A blocking attack on the genuine flag-ACKs (not itself an injection).
+        block: Option<Box<Attack>>,
+    },
 }
 
 impl Attack {
@@ -46,12 +61,42 @@ impl Attack {
         Ok(a)
     }
 
+    /// Independent blocking with probability `beta`, validated.
+    pub fn random(beta: f64) -> Result<Self> {
+        let a = Attack::Random { beta };
+        a.validate()?;
+        Ok(a)
+    }
+
+    /// Forged flag-ACKs with probability `gamma`, with an optional blocking attack, validated.
+    pub fn injection(gamma: f64, block: Option<Attack>) -> Result<Self> {
+        let a = Attack::Injection {
+            gamma,
+            block: block.map(Box::new),
+        };
+        a.validate()?;
+        Ok(a)
+    }
+
     /// Checks the attack's own parameters: `0 <= r < t` for [`Attack::Periodic`]; a mask is
-    /// non-empty and no longer than [`MAX_MASK`]. A mask may block every flag-ACK (the Monte
+    /// non-empty and no longer than [`MAX_MASK`]; probabilities lie in [0, 1]; an injection's
+    /// blocking attack is not itself an injection. A mask may block every flag-ACK (the Monte
     /// Carlo runs it; its stationary cost is J_max, which the analytic costs leave to
     /// `LinearSystem::j_max`, see [`Attack::blocks_every_flag`]).
     pub fn validate(&self) -> Result<()> {
         match self {
+            Attack::Random { beta } => check_probability("beta", *beta),
+            Attack::Injection { gamma, block } => {
+                check_probability("gamma", *gamma)?;
+                match block.as_deref() {
+                    None => Ok(()),
+                    Some(Attack::Injection { .. }) => Err(Error::invalid(
+                        "block",
+                        "must be a blocking attack, not another injection",
+                    )),
+                    Some(b) => b.validate(),
+                }
+            }
             Attack::Periodic { r, t } => {
                 if *t < 1 {
                     return Err(Error::invalid("t", format!("must be at least 1, got {t}")));
@@ -80,10 +125,33 @@ impl Attack {
         }
     }
 
-    /// True when no flag-ACK ever reaches the sensor (a mask of all ones). The holding time then
-    /// grows without bound, and the cost is J_max.
+    /// True when no genuine flag-ACK ever reaches the sensor (a mask of all ones, or random
+    /// blocking with β = 1) and none is forged: the holding time grows without bound, and the
+    /// cost is J_max.
     pub fn blocks_every_flag(&self) -> bool {
-        self.blocked() == self.period()
+        match self {
+            Attack::Random { beta } => *beta == 1.0,
+            Attack::Injection { .. } => false,
+            _ => self.blocked() == self.period(),
+        }
+    }
+
+    /// The probability γ of a forged flag-ACK per step without a genuine one (0 unless an
+    /// injection).
+    pub fn forging(&self) -> f64 {
+        match self {
+            Attack::Injection { gamma, .. } => *gamma,
+            _ => 0.0,
+        }
+    }
+
+    /// The attack on the genuine flag-ACKs: the attack itself, an injection's `block`, or
+    /// `None` for an injection that blocks nothing.
+    pub fn genuine_blocking(&self) -> Option<&Attack> {
+        match self {
+            Attack::Injection { block, .. } => block.as_deref(),
+            other => Some(other),
+        }
     }
 
     /// The refusal that the analytic costs give for an attack that blocks every flag-ACK.
@@ -97,25 +165,32 @@ impl Attack {
         Ok(())
     }
 
-    /// Period in flag-ACKs.
+    /// Period in flag-ACKs of a periodic blocking attack (1 for the others, whose blocking does
+    /// not depend on a counter).
     pub fn period(&self) -> u64 {
         match self {
             Attack::Periodic { t, .. } => *t,
             Attack::Mask(m) => m.len() as u64,
+            _ => 1,
         }
     }
 
-    /// Blocked flag-ACKs per period.
+    /// Blocked flag-ACKs per period of a periodic blocking attack (0 for the others).
     pub fn blocked(&self) -> u64 {
         match self {
             Attack::Periodic { r, .. } => *r,
             Attack::Mask(m) => m.iter().filter(|&&b| b).count() as u64,
+            _ => 0,
         }
     }
 
-    /// The budget β: the long-run fraction of flag-ACKs blocked.
+    /// The budget β: the long-run fraction of genuine flag-ACKs blocked.
     pub fn beta(&self) -> f64 {
-        self.blocked() as f64 / self.period() as f64
+        match self {
+            Attack::Random { beta } => *beta,
+            Attack::Injection { block, .. } => block.as_deref().map_or(0.0, Attack::beta),
+            _ => self.blocked() as f64 / self.period() as f64,
+        }
     }
 
     /// `Some((r, t))` when the attack blocks the first `r` of every `t` flag-ACKs, written as a
@@ -131,6 +206,7 @@ impl Attack {
                     .all(|&b| !b)
                     .then_some((r as u64, m.len() as u64))
             }
+            _ => None,
         }
     }
 
@@ -151,6 +227,10 @@ impl Attack {
                 Ok(Cow::Owned(m))
             }
             Attack::Mask(m) => Ok(Cow::Borrowed(m)),
+            _ => Err(Error::invalid(
+                "attack",
+                format!("{self} has no periodic blocking mask"),
+            )),
         }
     }
 
@@ -160,6 +240,11 @@ impl Attack {
         match self {
             Attack::Periodic { r, .. } => *r,
             Attack::Mask(m) => longest_cyclic_run(m) as u64,
+            Attack::Random { beta } if *beta == 0.0 => 0,
+            Attack::Random { .. } => u64::MAX,
+            Attack::Injection { block, .. } => {
+                block.as_deref().map_or(0, Attack::longest_blocked_run)
+            }
         }
     }
 }
@@ -179,7 +264,23 @@ impl fmt::Display for Attack {
                 self.blocked(),
                 m.len()
             ),
+            Attack::Random { beta } => write!(f, "block each flag-ACK with probability {beta}"),
+            Attack::Injection { gamma, block } => {
+                write!(f, "forge a flag-ACK with probability {gamma}")?;
+                match block {
+                    Some(b) => write!(f, ", and {b}"),
+                    None => Ok(()),
+                }
+            }
         }
+    }
+}
+
+fn check_probability(arg: &str, p: f64) -> Result<()> {
+    if p.is_finite() && (0.0..=1.0).contains(&p) {
+        Ok(())
+    } else {
+        Err(Error::invalid(arg, format!("must lie in [0, 1], got {p}")))
     }
 }
 
@@ -264,6 +365,32 @@ mod tests {
             t: MAX_MASK as u64 + 1,
         };
         assert!(matches!(a.blocking_mask(), Err(Error::TooLarge { .. })));
+    }
+
+    #[test]
+    fn random_and_injection() {
+        assert!(Attack::random(0.3).is_ok());
+        for bad in [-0.1, 1.1, f64::NAN] {
+            let e = Attack::random(bad).unwrap_err();
+            assert!(e.to_string().starts_with("beta:"), "{e}");
+            let e = Attack::injection(bad, None).unwrap_err();
+            assert!(e.to_string().starts_with("gamma:"), "{e}");
+        }
+        let nested = Attack::injection(0.1, Some(Attack::injection(0.1, None).unwrap()));
+        assert!(nested.unwrap_err().to_string().starts_with("block:"));
+        let inj = Attack::injection(0.1, Some(Attack::periodic(1, 5).unwrap())).unwrap();
+        assert_eq!(inj.forging(), 0.1);
+        assert_eq!(inj.beta(), 0.2);
+        assert_eq!(
+            inj.genuine_blocking(),
+            Some(&Attack::Periodic { r: 1, t: 5 })
+        );
+        assert!(!inj.blocks_every_flag() && Attack::random(1.0).unwrap().blocks_every_flag());
+        assert!(Attack::random(0.5).unwrap().blocking_mask().is_err());
+        assert_eq!(
+            inj.to_string(),
+            "forge a flag-ACK with probability 0.1, and block 1 of every 5 flag-ACKs"
+        );
     }
 
     #[test]

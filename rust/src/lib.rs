@@ -58,6 +58,7 @@ pub mod online;
 pub mod pattern;
 #[cfg(test)]
 mod properties;
+pub mod random;
 pub mod riccati;
 pub mod rng;
 pub mod schedules;

@@ -96,6 +96,98 @@ impl OnlineDesign {
     }
 }
 
+/// The detector's memory walk between two fresh starts (an arrival, or a high-power step after a
+/// flag-ACK reached the sensor), with an attacker who forges a flag-ACK with probability `gamma`
+/// on every step on which the detector sends none (`gamma = 0`: no forging).
+///
+/// Per step without a genuine flag the walk goes on (a loss at low power, no forgery) with
+/// probability c = (1-λ)(1-γ); a blocked genuine flag goes on with probability a = 1-λ, since
+/// nothing is forged on a step that carries a genuine flag. Relative to c^τ, each blocked flag
+/// on the way to τ therefore weighs ε = 1/(1-γ).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Walk {
+    /// Arrival probability λ at low power.
+    pub lam: f64,
+    /// The online schedule's memory.
+    pub design: OnlineDesign,
+    /// Probability of a forged flag-ACK on a step without a genuine one.
+    pub gamma: f64,
+}
+
+impl Walk {
+    /// A validated walk: `0 < lam < 1`, a valid design, `0 <= gamma <= 1`.
+    pub fn new(lam: f64, design: OnlineDesign, gamma: f64) -> Result<Self> {
+        check_lam(lam)?;
+        design.validate()?;
+        if !(gamma.is_finite() && (0.0..=1.0).contains(&gamma)) {
+            return Err(Error::invalid(
+                "gamma",
+                format!("must lie in [0, 1], got {gamma}"),
+            ));
+        }
+        Ok(Walk { lam, design, gamma })
+    }
+
+    /// ln c, c = (1-λ)(1-γ) (-inf when γ = 1).
+    fn ln_c(&self) -> f64 {
+        (-self.lam).ln_1p() + (-self.gamma).ln_1p()
+    }
+
+    /// c^k, the weight of k steps without a genuine flag (1 for k = 0, also when c = 0).
+    pub fn c_pow(&self, k: u64) -> f64 {
+        if k == 0 {
+            1.0
+        } else {
+            (k as f64 * self.ln_c()).exp()
+        }
+    }
+
+    /// c = (1-λ)(1-γ).
+    pub fn continuation(&self) -> f64 {
+        self.c_pow(1)
+    }
+
+    /// u = c^z0 (μ + (1-μ) c): the chance of a genuine flag-ACK before the next fresh start, from
+    /// a fresh start.
+    pub fn flag_probability(&self) -> f64 {
+        let c = self.continuation();
+        self.c_pow(self.design.z0) * (self.design.mu + (1.0 - self.design.mu) * c)
+    }
+
+    /// 1 - u without cancellation: (1 - c^z0) + c^z0 (1-μ)(1-c).
+    pub fn no_flag_probability(&self) -> f64 {
+        let l = self.ln_c();
+        let z0 = self.design.z0 as f64;
+        let (cz, one_minus_cz) = if l == f64::NEG_INFINITY {
+            (0.0, 1.0)
+        } else {
+            ((z0 * l).exp(), -(z0 * l).exp_m1())
+        };
+        one_minus_cz + cz * (1.0 - self.design.mu) * -l.exp_m1()
+    }
+
+    /// 1 - ũ with ũ = ε u = a c^(z0-1) (μ + (1-μ) c), the chance that the walk goes on from a
+    /// blocked flag-ACK to the next genuine one: the relative rate of fresh starts in a counter
+    /// level entered by a blocked flag (1 - u when nothing is forged).
+    pub fn restart_after_block(&self) -> f64 {
+        if self.gamma == 0.0 {
+            return self.no_flag_probability();
+        }
+        let rest = match self.design.z0 - 1 {
+            0 => 0.0, // no step after the blocked one before the memory is full again
+            k => k as f64 * self.ln_c(),
+        };
+        let l = (-self.lam).ln_1p() + rest;
+        let one_minus_c = -self.ln_c().exp_m1();
+        -l.exp_m1() + l.exp() * (1.0 - self.design.mu) * one_minus_c
+    }
+
+    /// ln ε = -ln(1-γ): each blocked flag on a path weighs ε relative to c^τ.
+    pub fn ln_block_factor(&self) -> f64 {
+        -(-self.gamma).ln_1p()
+    }
+}
+
 /// Largest memory [`design_online`] returns.
 pub const MAX_DESIGN_Z0: u64 = 1_000_000;
 
@@ -171,6 +263,39 @@ mod tests {
             assert!(e.to_string().starts_with("lam:"), "{e}");
         }
         assert!(check_lam(1e-300).is_ok());
+    }
+
+    #[test]
+    fn walk_without_forging_is_the_plain_memory_walk() {
+        let d = OnlineDesign::new(3, 0.4).unwrap();
+        let w = Walk::new(0.3, d, 0.0).unwrap();
+        assert_eq!(w.flag_probability(), d.flag_probability(0.3));
+        assert_eq!(w.no_flag_probability(), d.no_flag_probability(0.3));
+        assert_eq!(w.restart_after_block(), d.no_flag_probability(0.3));
+        assert!(Walk::new(0.3, d, 1.5)
+            .unwrap_err()
+            .to_string()
+            .starts_with("gamma:"));
+    }
+
+    #[test]
+    fn walk_with_forging() {
+        // c = 0.7 * 0.8 = 0.56; u = c^3 (0.4 + 0.6 c); 1 - ũ = 1 - 0.7 c^2 (0.4 + 0.6 c).
+        let d = OnlineDesign::new(3, 0.4).unwrap();
+        let w = Walk::new(0.3, d, 0.2).unwrap();
+        let c: f64 = 0.56;
+        let u = c.powi(3) * (0.4 + 0.6 * c);
+        assert!((w.flag_probability() - u).abs() < 1e-15);
+        assert!((w.no_flag_probability() - (1.0 - u)).abs() < 1e-15);
+        let tilde = 0.7 * c * c * (0.4 + 0.6 * c);
+        assert!((w.restart_after_block() - (1.0 - tilde)).abs() < 1e-15);
+        // Forging every step: the walk never goes on.
+        let all = Walk::new(0.3, d, 1.0).unwrap();
+        assert_eq!(
+            (all.flag_probability(), all.no_flag_probability()),
+            (0.0, 1.0)
+        );
+        assert_eq!(all.c_pow(0), 1.0);
     }
 
     #[test]

@@ -16,22 +16,29 @@
 
 use crate::attack::{longest_cyclic_run, Attack};
 use crate::error::{Error, Result};
-use crate::online::{apow, check_lam, OnlineDesign};
+use crate::online::{check_lam, OnlineDesign, Walk};
 use crate::riccati::LinearSystem;
 
 /// Largest segment index for μ < 1, where building the segments costs O(kmax²).
 pub const MAX_SEGMENTS_MIXED: u64 = 20_000;
 
 /// Segment sums of one fresh-start walk.
+///
+/// With forged flag-ACKs (a [`Walk`] with γ > 0) every formula keeps its form: steps without a
+/// genuine flag go on with probability c = (1-λ)(1-γ) instead of a, so the sums use c^τ, each
+/// blocked flag on the way to segment k weighs ε = 1/(1-γ) more (segment k is scaled by ε^k),
+/// and a level entered by a blocked flag restarts at the relative rate 1 - ε u.
 #[derive(Debug, Clone)]
 pub struct Segments {
-    /// u = a^z0 (μ + (1-μ) a): probability of a flag before the next arrival.
+    /// u = c^z0 (μ + (1-μ) c): probability of a genuine flag before the next fresh start.
     pub u: f64,
     /// 1 - u, computed without cancellation (tiny λ).
     pub one_minus_u: f64,
-    /// W_k: segment k's sum of a^τ Tr h^τ(P̄) (times the path weights).
+    /// 1 - ε u: the c̃ of a counter level entered by a blocked flag (= 1 - u without forging).
+    pub restart_after_block: f64,
+    /// W_k: segment k's sum of c^τ Tr h^τ(P̄) (times the path weights).
     pub w: Vec<f64>,
-    /// M_k: segment k's sum of a^τ (times the path weights): expected steps spent there.
+    /// M_k: segment k's sum of c^τ (times the path weights): expected steps spent there.
     pub m: Vec<f64>,
 }
 
@@ -55,21 +62,27 @@ impl Segments {
     /// Segments 0..=kmax from the weighted traces `wtr[τ] = a^τ Tr h^τ(P̄)`,
     /// τ = 0..=[`tau_needed`].
     pub fn new(wtr: &[f64], lam: f64, design: OnlineDesign, kmax: u64) -> Result<Self> {
-        check_lam(lam)?;
-        design.validate()?;
-        let OnlineDesign { z0, mu } = design;
+        Self::of_walk(wtr, &Walk::new(lam, design, 0.0)?, kmax)
+    }
+
+    /// Segments 0..=kmax of a walk with forged flags, from `wtr[τ] = c^τ Tr h^τ(P̄)`.
+    pub fn of_walk(wtr: &[f64], walk: &Walk, kmax: u64) -> Result<Self> {
+        let OnlineDesign { z0, mu } = walk.design;
         let need = tau_needed(z0, kmax) as usize + 1;
         if wtr.len() < need {
             return Err(Error::invalid("w", format!("needs {need} weighted traces")));
         }
-        let mass: Vec<f64> = (0..need).map(|tau| apow(lam, tau as u64)).collect();
-        let (w, m) = (
+        let mass: Vec<f64> = (0..need).map(|tau| walk.c_pow(tau as u64)).collect();
+        let (mut w, mut m) = (
             segment_sums(&wtr[..need], z0, mu, kmax),
             segment_sums(&mass, z0, mu, kmax),
         );
+        scale_by_block_factor(&mut w, walk);
+        scale_by_block_factor(&mut m, walk);
         Ok(Segments {
-            u: design.flag_probability(lam),
-            one_minus_u: design.no_flag_probability(lam),
+            u: walk.flag_probability(),
+            one_minus_u: walk.no_flag_probability(),
+            restart_after_block: walk.restart_after_block(),
             w,
             m,
         })
@@ -83,20 +96,22 @@ impl Segments {
         design: OnlineDesign,
         kmax: u64,
     ) -> Result<Self> {
-        check_lam(lam)?;
-        design.validate()?;
-        Self::check_depth(design, kmax)?;
-        let w = sys.checked_weighted_traces(1.0 - lam, tau_needed(design.z0, kmax), "r")?;
-        Segments::new(&w, lam, design, kmax)
+        Self::for_walk(sys, &Walk::new(lam, design, 0.0)?, kmax)
+    }
+
+    /// [`Segments::for_system`] for a walk with forged flags.
+    pub fn for_walk(sys: &LinearSystem, walk: &Walk, kmax: u64) -> Result<Self> {
+        Self::check_depth(walk.design, kmax)?;
+        let c = walk.continuation();
+        let w = sys.checked_weighted_traces(c, tau_needed(walk.design.z0, kmax), "r")?;
+        Segments::of_walk(&w, walk, kmax)
     }
 
     /// Segments 0..=kmax of the expected time alone (`w = m`): enough for the flag rates, which
     /// do not depend on the system.
-    pub fn masses_only(lam: f64, design: OnlineDesign, kmax: u64) -> Result<Self> {
-        check_lam(lam)?;
-        design.validate()?;
-        Self::check_depth(design, kmax)?;
-        let need = tau_needed(design.z0, kmax);
+    pub fn masses_only(walk: &Walk, kmax: u64) -> Result<Self> {
+        Self::check_depth(walk.design, kmax)?;
+        let need = tau_needed(walk.design.z0, kmax);
         if need >= crate::riccati::MAX_TRACES {
             return Err(Error::TooLarge {
                 arg: "r".into(),
@@ -104,8 +119,8 @@ impl Segments {
                 limit: crate::riccati::MAX_TRACES,
             });
         }
-        let mass: Vec<f64> = (0..=need as u64).map(|tau| apow(lam, tau)).collect();
-        Segments::new(&mass, lam, design, kmax)
+        let mass: Vec<f64> = (0..=need as u64).map(|tau| walk.c_pow(tau)).collect();
+        Segments::of_walk(&mass, walk, kmax)
     }
 
     fn check_depth(design: OnlineDesign, kmax: u64) -> Result<()> {
@@ -200,7 +215,7 @@ impl Segments {
         }
         let c_tilde = |j: usize| {
             if mask[(j + t - 1) % t] {
-                self.one_minus_u
+                self.restart_after_block
             } else {
                 1.0
             }
@@ -227,7 +242,7 @@ impl Segments {
     /// `a_r = Σ_{σ=1..r} W_σ + (1-u) Σ_{k<r} (r-k) W_k - r W_0` (and `b_r` the same for M),
     /// J(r, t) = (t W_0 + a_r) / (t M_0 + b_r). Returns (a_r, b_r) for r = 0..=rmax.
     pub fn first_r_offsets(&self, rmax: usize) -> (Vec<f64>, Vec<f64>) {
-        let one_minus_u = self.one_minus_u;
+        let one_minus_u = self.restart_after_block;
         let run = |v: &[f64]| -> Vec<f64> {
             let mut out = Vec::with_capacity(rmax + 1);
             let (mut head, mut tail, mut partial) = (0.0, 0.0, 0.0);
@@ -255,6 +270,25 @@ impl Segments {
     pub fn first_r_numerator(&self, r: usize, t: usize) -> f64 {
         let (a, _) = self.first_r_offsets(r);
         t as f64 * self.w[0] + a[r]
+    }
+}
+
+/// Multiplies segment k by ε^k (see [`Segments`]); exact when nothing is forged. A segment that
+/// c = 0 empties (γ = 1) stays 0.
+fn scale_by_block_factor(v: &mut [f64], walk: &Walk) {
+    let ln_eps = walk.ln_block_factor();
+    if ln_eps == 0.0 {
+        return;
+    }
+    for (k, x) in v.iter_mut().enumerate().skip(1) {
+        let f = k as f64 * ln_eps;
+        *x = if *x == 0.0 {
+            0.0
+        } else if f < 700.0 {
+            *x * f.exp()
+        } else {
+            (x.ln() + f).exp() // ε^k alone would overflow; the product does not
+        };
     }
 }
 
