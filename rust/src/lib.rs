@@ -12,6 +12,7 @@ pub mod attack;
 pub mod chain;
 pub mod error;
 pub mod general;
+mod linalg;
 pub mod montecarlo;
 pub mod pattern;
 #[cfg(test)]
@@ -19,8 +20,11 @@ mod properties;
 pub mod riccati;
 pub mod rng;
 pub mod schedules;
+pub mod spectral;
 pub mod stationary;
+pub mod stein;
 pub mod sweep;
+pub mod system;
 pub mod transient;
 
 #[cfg(feature = "python")]
@@ -28,3 +32,4 @@ mod bindings;
 
 pub use attack::Attack;
 pub use error::{Error, Result};
+pub use system::LinearSystem;

@@ -15,8 +15,8 @@
 //! the μ = 1, first-r-of-t case written out state by state.
 
 use crate::error::{check_lam, check_mu, Error, Result};
-use crate::riccati::LinearSystem;
 use crate::schedules::{apow, one_minus_u};
+use crate::system::LinearSystem;
 
 /// Largest segment index for μ < 1, where building the segments costs O(kmax²).
 pub const MAX_SEGMENTS_MIXED: u64 = 20_000;

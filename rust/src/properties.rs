@@ -7,9 +7,9 @@ use proptest::prelude::*;
 use crate::chain::AttackChain;
 use crate::general;
 use crate::pattern::{longest_cyclic_run, Segments};
-use crate::riccati::LinearSystem;
 use crate::schedules::{j_max, j_online};
 use crate::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
+use crate::system::LinearSystem;
 
 fn system(n: usize, m: usize, entries: &[f64], scale: f64) -> Option<LinearSystem> {
     let mut it = entries.iter().cycle().copied();

@@ -3,10 +3,10 @@
 //! item 2) and the all-blocked cost J_max.
 //!
 //! Every cost takes the weighted traces `w_i = a^i Tr h^i(P̄)` (a = 1 - λ), see
-//! [`crate::riccati::LinearSystem::weighted_traces`].
+//! [`crate::LinearSystem::weighted_traces`].
 
 use crate::error::{check_lam, check_mu, Error, Result};
-use crate::riccati::LinearSystem;
+use crate::system::LinearSystem;
 use nalgebra::DMatrix;
 
 /// Largest period q accepted for an explicit offline schedule (one byte per step).

@@ -76,8 +76,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use rayon::prelude::*;
 
 use crate::error::{check_lam, check_mu, Error, Result};
-use crate::riccati::LinearSystem;
 use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
+use crate::system::LinearSystem;
 
 /// Calls `$go!(ONLINE, MU_DRAW, ATTACK, PROTO_A)` with the const-generic kernel flags matching
 /// the run-time tuple `$flags` (an offline plan has no detector, an unattacked one no channel).
