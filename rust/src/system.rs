@@ -8,8 +8,8 @@
 use nalgebra::DMatrix;
 
 use crate::error::{Error, Result};
-use crate::linalg::{frobenius_norm, symmetrize};
-use crate::riccati::{self, measurement_update};
+use crate::linalg::symmetrize;
+use crate::riccati;
 use crate::spectral::{detectability_error, spectral_radius};
 use crate::stein;
 
@@ -154,33 +154,22 @@ impl LinearSystem {
             Error::NotConverged { .. } => detectability_error(&a, &c).unwrap_or(e),
             other => other,
         })?;
-        let mut sys = LinearSystem {
+        Ok(LinearSystem {
             a,
             c,
             q,
             r,
             pbar: steady.pbar,
-            residual: 0.0,
+            residual: steady.residual,
             iterations: steady.iterations,
             spectral_radius,
-        };
-        sys.residual = sys.fixed_point_residual(&sys.pbar);
-        Ok(sys)
+        })
     }
 
     /// Relative residual ||g̃(h(X)) - X||_F / ||X||_F of the fixed-point equation of P̄
     /// (absolute when X = 0; `+inf` when C h(X) C' + R is not positive definite).
     pub fn fixed_point_residual(&self, x: &DMatrix<f64>) -> f64 {
-        let g = match measurement_update(&self.h(x), &self.c, &self.r) {
-            Some((g, _)) => g,
-            None => return f64::INFINITY,
-        };
-        let (distance, x_norm) = (frobenius_norm(&(g - x)), frobenius_norm(x));
-        if x_norm > 0.0 {
-            distance / x_norm
-        } else {
-            distance
-        }
+        riccati::fixed_point_residual(&self.a, &self.c, &self.q, &self.r, x)
     }
 
     /// The Lyapunov operator h(X) = A X A' + Q (Sec. II-A): the remote error covariance one step
@@ -226,8 +215,8 @@ impl LinearSystem {
         self.spectral_radius
     }
 
-    /// `[Tr h^0(P̄), ..., Tr h^n(P̄)]`, strictly increasing by Lemma 2.1, eq. (7). Entries that overflow are `+inf`
-    /// (never NaN).
+    /// `[Tr h^0(P̄), ..., Tr h^n(P̄)]`, strictly increasing by Lemma 2.1, eq. (7). Entries that
+    /// overflow are `+inf` (never NaN).
     pub fn h_traces(&self, n: usize) -> Vec<f64> {
         self.weighted_traces(1.0, n)
     }
