@@ -30,7 +30,8 @@ use nalgebra::DMatrix;
 use fakeack::chain::{self, AttackChain};
 use fakeack::montecarlo::{self, McConfig, McSchedule, Mode, Protocol};
 use fakeack::pattern::Segments;
-use fakeack::riccati::{spectral_radius, LinearSystem};
+use fakeack::spectral::spectral_radius;
+use fakeack::LinearSystem;
 use fakeack::{stationary, sweep};
 
 /// The paper's example: A = 1.2, C = 0.7, Q = R = 0.8, λ = 0.5.

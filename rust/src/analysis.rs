@@ -28,9 +28,9 @@ use crate::general::general_attack_chain;
 use crate::montecarlo::{self, McConfig, McResult, McSchedule};
 use crate::online::{check_lam, OnlineDesign, Walk};
 use crate::pattern::{self, tau_needed, Segments};
-use crate::riccati::LinearSystem;
 use crate::schedules::{self, offline_schedule, Ratio};
 use crate::sweep::{self, Sweep};
+use crate::system::LinearSystem;
 use crate::transient;
 
 /// The sensor's power schedule.

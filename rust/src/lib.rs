@@ -53,6 +53,7 @@ pub mod attack;
 pub mod chain;
 pub mod error;
 pub mod general;
+mod linalg;
 pub mod montecarlo;
 pub mod online;
 pub mod pattern;
@@ -62,8 +63,11 @@ pub mod random;
 pub mod riccati;
 pub mod rng;
 pub mod schedules;
+pub mod spectral;
 pub mod stationary;
+pub mod stein;
 pub mod sweep;
+pub mod system;
 pub mod transient;
 
 #[cfg(feature = "python")]
@@ -74,6 +78,6 @@ pub use attack::Attack;
 pub use error::{Error, Result};
 pub use montecarlo::{McConfig, McResult, McSchedule, Mode, Protocol};
 pub use online::{design_online, OnlineDesign};
-pub use riccati::LinearSystem;
 pub use schedules::Ratio;
 pub use sweep::Sweep;
+pub use system::LinearSystem;

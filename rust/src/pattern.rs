@@ -16,8 +16,8 @@
 
 use crate::attack::{longest_cyclic_run, Attack};
 use crate::error::{Error, Result};
-use crate::online::{check_lam, OnlineDesign, Walk};
-use crate::riccati::LinearSystem;
+use crate::online::{OnlineDesign, Walk};
+use crate::system::LinearSystem;
 
 /// Largest segment index for μ < 1, where building the segments costs O(kmax²).
 pub const MAX_SEGMENTS_MIXED: u64 = 20_000;
@@ -112,11 +112,11 @@ impl Segments {
     pub fn masses_only(walk: &Walk, kmax: u64) -> Result<Self> {
         Self::check_depth(walk.design, kmax)?;
         let need = tau_needed(walk.design.z0, kmax);
-        if need >= crate::riccati::MAX_TRACES {
+        if need >= crate::system::MAX_TRACES {
             return Err(Error::TooLarge {
                 arg: "r".into(),
                 requested: need,
-                limit: crate::riccati::MAX_TRACES,
+                limit: crate::system::MAX_TRACES,
             });
         }
         let mass: Vec<f64> = (0..=need as u64).map(|tau| walk.c_pow(tau)).collect();

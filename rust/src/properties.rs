@@ -9,9 +9,9 @@ use crate::chain::AttackChain;
 use crate::general;
 use crate::online::OnlineDesign;
 use crate::pattern::Segments;
-use crate::riccati::LinearSystem;
 use crate::schedules::{j_max, j_online};
 use crate::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
+use crate::system::LinearSystem;
 
 fn system(n: usize, m: usize, entries: &[f64], scale: f64) -> Option<LinearSystem> {
     let mut it = entries.iter().cycle().copied();
@@ -22,6 +22,48 @@ fn system(n: usize, m: usize, entries: &[f64], scale: f64) -> Option<LinearSyste
     let q = &b * b.transpose() + DMatrix::identity(n, n) * 0.1;
     let r = &d * d.transpose() + DMatrix::identity(m, m) * 0.2;
     LinearSystem::new(a, c, q, r).ok()
+}
+
+/// First-order estimate φ of the relative residual ||g̃(h(X)) - X||_F / ||X||_F that evaluating it
+/// in double precision (u = 2^-53) leaves for X = P̄ rounded to double, i.e. for a perfect solver:
+///
+/// φ = u [ (1 + ||F||²) + ||I - KC||² (||A||_F² ||P̄||_F + ||Q||_F) / ||P̄||_F
+///         + (||h(P̄)||_F + ||K||² ||S||) / ||P̄||_F ],
+///
+/// S = C h(P̄) C' + R, K = h(P̄) C' S^{-1}, F = (I - K C) A; 2-norms unless marked F.
+///
+/// Derivation. (1) X = P̄ + δ with |δ| <= u |P̄|. The derivative of X -> g̃(h(X)) at P̄ is
+/// δ -> F δ F', so X's exact residual is ||F δ F' - δ||_F / ||P̄||_F <= u (1 + ||F||²).
+/// (2) h(X) = A X A' + Q computed in double errs by δY with
+/// ||δY||_F <= γ_{2n+1} (||A||_F² ||X||_F + ||Q||_F), γ_k ≈ k u, and g̃ passes δY on as
+/// (I - K C) δY (I - K C)'. (3) Inside g̃, Y - K S K' subtracts K S K' <= Y from Y = h(P̄);
+/// with a backward-stable Cholesky solve this costs O(u (||Y||_F + ||K||² ||S||)).
+/// The constant 32 covers the first-order constants (the longest chain, A X A', has 2n+1 <= 13
+/// roundings); the largest residual/φ seen over 120 000 draws of this generator is 5.
+///
+/// Why not a fixed bound: when C barely sees an unstable direction, ||I - K C|| reaches ~800 and
+/// φ ~ 1e-9 in 100 000 draws; the correctly rounded exact P̄ of one of them (computed in 60-digit
+/// arithmetic) evaluates to 9.7e-11, a hair under the former bound of 1e-10, and φ grows without
+/// limit as C's view of that direction shrinks, so a fixed bound fails for some draw whatever the
+/// solver. Before the solver's defect correction ([`crate::riccati::steady_state`]) residuals
+/// reached 1e4 φ (2.2e-7) on these draws, and this bound catches that.
+fn residual_floor(sys: &LinearSystem) -> f64 {
+    let (a, c, q, r, pbar) = (sys.a(), sys.c(), sys.q(), sys.r(), sys.pbar());
+    let n = sys.n();
+    let norm2 = |m: &DMatrix<f64>| m.singular_values().max();
+    let hp = sys.h(pbar);
+    let s = c * &hp * c.transpose() + r;
+    let Some(s_chol) = s.clone().cholesky() else {
+        return f64::INFINITY;
+    };
+    let gain_t = s_chol.solve(&(c * &hp)); // K'
+    let i_kc = DMatrix::<f64>::identity(n, n) - gain_t.transpose() * c;
+    let f = &i_kc * a;
+    let p_norm = pbar.norm();
+    let rounding = 1.0 + norm2(&f).powi(2);
+    let lyapunov = norm2(&i_kc).powi(2) * (a.norm().powi(2) * p_norm + q.norm()) / p_norm;
+    let update = (hp.norm() + norm2(&gain_t).powi(2) * norm2(&s)) / p_norm;
+    f64::EPSILON / 2.0 * (rounding + lyapunov + update)
 }
 
 proptest! {
@@ -44,7 +86,9 @@ proptest! {
     #[test]
     fn riccati_residual_small(n in 1usize..=6, m in 1usize..=3, entries in prop::collection::vec(-1.0f64..1.0, 100), scale in 0.2f64..1.6) {
         if let Some(sys) = system(n, m, &entries, scale) {
-            prop_assert!(sys.residual() < 1e-10, "residual {}", sys.residual());
+            let floor = residual_floor(&sys);
+            let residual = sys.residual();
+            prop_assert!(residual <= 32.0 * floor, "residual {:e} > 32 x floor {:e}", residual, floor);
         }
     }
 

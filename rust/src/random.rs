@@ -29,7 +29,7 @@
 
 use crate::error::{Error, Result};
 use crate::online::{OnlineDesign, Walk};
-use crate::riccati::LinearSystem;
+use crate::system::LinearSystem;
 
 /// Relative size of the neglected tail of each sum.
 pub const TAIL_TOL: f64 = 1e-17;
@@ -81,7 +81,7 @@ impl<'a> ScaledTraces<'a> {
     /// Traces for the walk's c on `sys` (θ = min(1, 1/(c ρ²))).
     pub fn new(sys: &'a LinearSystem, walk: &Walk) -> Self {
         let c = walk.continuation();
-        let c_rho2 = c * sys.rho() * sys.rho();
+        let c_rho2 = c * sys.spectral_radius() * sys.spectral_radius();
         let theta = if c_rho2 > 1.0 { 1.0 / c_rho2 } else { 1.0 };
         ScaledTraces {
             sys,
@@ -118,7 +118,7 @@ pub fn cycle(traces: &mut ScaledTraces<'_>, walk: &Walk, beta: f64) -> Result<Cy
     }
     let OnlineDesign { z0, mu } = walk.design;
     let z0 = z0 as usize;
-    let q = growth_ratio(walk, beta, traces.sys.rho());
+    let q = growth_ratio(walk, beta, traces.sys.spectral_radius());
     let mass_q = beta * walk.ln_block_factor().exp() * walk.flag_probability();
     // Past the growth condition only the time and flag sums are needed, unscaled.
     let (theta, ct) = if q >= 1.0 {

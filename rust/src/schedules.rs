@@ -3,11 +3,11 @@
 //! note 2) and the all-blocked cost J_max.
 //!
 //! Every cost takes the weighted traces `w_i = a^i Tr h^i(P̄)` (a = 1 - λ), see
-//! [`crate::riccati::LinearSystem::weighted_traces`].
+//! [`crate::LinearSystem::weighted_traces`].
 
 use crate::error::{Error, Result};
 use crate::online::{check_lam, OnlineDesign};
-use crate::riccati::LinearSystem;
+use crate::system::LinearSystem;
 use nalgebra::DMatrix;
 use std::fmt;
 

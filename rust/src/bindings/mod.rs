@@ -13,7 +13,7 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 
 use crate::error::Error;
-use crate::{riccati, Attack, OnlineDesign};
+use crate::{Attack, OnlineDesign};
 
 mod chains;
 mod simulate;
@@ -103,7 +103,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
         "MAX_VECTOR_STATES",
         crate::stationary::MAX_VECTOR_STATES as u64,
     )?;
-    m.add("DEFAULT_TOL", riccati::DEFAULT_TOL)?;
-    m.add("DEFAULT_MAX_ITER", riccati::DEFAULT_MAX_ITER)?;
+    m.add("DEFAULT_TOL", crate::system::DEFAULT_TOL)?;
+    m.add("DEFAULT_MAX_ITER", crate::system::DEFAULT_MAX_ITER)?;
     Ok(())
 }

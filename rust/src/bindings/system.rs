@@ -4,7 +4,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 
 use super::{attack_of, design, to_dmatrix, to_numpy, PyAttack};
-use crate::{riccati, LinearSystem, Ratio, Schedule};
+use crate::{system, LinearSystem, Ratio, Schedule};
 
 /// A validated system with its steady-state covariance P̄ (wrapped by `fakeack.LinearSystem`).
 #[pyclass(frozen, name = "LinearSystem", module = "fakeack._fakeack")]
@@ -15,7 +15,7 @@ pub(crate) struct PySystem {
 #[pymethods]
 impl PySystem {
     #[new]
-    #[pyo3(signature = (a, c, q, r, tol = riccati::DEFAULT_TOL, max_iter = riccati::DEFAULT_MAX_ITER))]
+    #[pyo3(signature = (a, c, q, r, tol = system::DEFAULT_TOL, max_iter = system::DEFAULT_MAX_ITER))]
     fn new(
         py: Python<'_>,
         a: PyReadonlyArray2<'_, f64>,
@@ -51,7 +51,7 @@ impl PySystem {
 
     #[getter]
     fn spectral_radius(&self) -> f64 {
-        self.inner.rho()
+        self.inner.spectral_radius()
     }
 
     fn weighted_traces<'py>(

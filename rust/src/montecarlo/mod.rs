@@ -77,8 +77,8 @@ use rayon::prelude::*;
 
 use crate::error::{Error, Result};
 use crate::online::{check_lam, OnlineDesign};
-use crate::riccati::LinearSystem;
 use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
+use crate::system::LinearSystem;
 
 /// Calls `$go!(ONLINE, MU_DRAW, ATTACK, PROTO_A)` with the const-generic kernel flags matching
 /// the run-time tuple `$flags` (an offline plan has no detector, an unattacked one no channel).

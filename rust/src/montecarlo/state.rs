@@ -10,8 +10,8 @@ use super::kernel::{
 };
 use super::{CHUNK_STEPS, LANES};
 use crate::error::{Error, Result};
-use crate::riccati::LinearSystem;
 use crate::rng::NormalSampler;
+use crate::system::LinearSystem;
 
 // ---------------------------------------------------------------------------------------------
 // State-mode model.
