@@ -40,6 +40,9 @@ pub const MAX_TAU: usize = 100_000_000;
 /// q, the long-run ratio of the cost terms per run of losses (see the module docs); J is
 /// finite iff q < 1.
 pub fn growth_ratio(walk: &Walk, beta: f64, spectral_radius: f64) -> f64 {
+    if beta == 0.0 || walk.gamma == 1.0 {
+        return 0.0; // no blocked flag, or no step that goes on: one run of losses at most
+    }
     let OnlineDesign { z0, mu } = walk.design;
     let c_rho2 = walk.continuation() * spectral_radius * spectral_radius;
     let eps = walk.ln_block_factor().exp();
@@ -108,23 +111,39 @@ impl<'a> ScaledTraces<'a> {
 }
 
 /// The renewal cycle under independent blocking with probability `beta`, on `walk` (which
-/// carries λ, the memory and γ). `traces` must come from the same walk.
-pub fn cycle(traces: &mut ScaledTraces<'_>, walk: &Walk, beta: f64) -> Result<Cycle> {
+/// carries λ, the memory and γ). `traces` must come from the same walk; without them only the
+/// time and flag sums are computed (`cost` is NaN).
+pub fn cycle(traces: Option<&mut ScaledTraces<'_>>, walk: &Walk, beta: f64) -> Result<Cycle> {
     if !(beta.is_finite() && (0.0..=1.0).contains(&beta)) {
         return Err(Error::invalid(
             "beta",
             format!("must lie in [0, 1], got {beta}"),
         ));
     }
+    if walk.gamma == 1.0 {
+        // Every step without a genuine flag is forged: each cycle is the one step τ = 0.
+        let cost = match traces {
+            Some(t) => t.get(0)?,
+            None => f64::NAN,
+        };
+        return Ok(Cycle {
+            cost,
+            steps: 1.0,
+            flags: 0.0,
+        });
+    }
     let OnlineDesign { z0, mu } = walk.design;
     let z0 = z0 as usize;
-    let q = growth_ratio(walk, beta, traces.sys.spectral_radius());
     let mass_q = beta * walk.ln_block_factor().exp() * walk.flag_probability();
-    // Past the growth condition only the time and flag sums are needed, unscaled.
-    let (theta, ct) = if q >= 1.0 {
-        (1.0, walk.continuation())
-    } else {
-        (traces.theta, traces.weight)
+    // Past the growth condition (or without traces) only the time and flag sums are needed,
+    // unscaled.
+    let q = traces.as_ref().map_or(f64::INFINITY, |t| {
+        growth_ratio(walk, beta, t.sys.spectral_radius())
+    });
+    let mut traces = traces.filter(|_| q < 1.0);
+    let (theta, ct) = match &traces {
+        Some(t) => (t.theta, t.weight),
+        None => (1.0, walk.continuation()),
     };
     let blocked_weight = beta * walk.ln_block_factor().exp() / theta;
     // p[z]: path weight at the current τ with z zeros since the last reset, over θ^τ.
@@ -135,13 +154,13 @@ pub fn cycle(traces: &mut ScaledTraces<'_>, walk: &Walk, beta: f64) -> Result<Cy
     for tau in 0.. {
         let total: f64 = p.iter().sum();
         let flag = mu * p[z0] + p[z0 + 1];
-        if q < 1.0 {
-            cost.add(total * traces.get(tau)?);
+        if let Some(t) = traces.as_mut() {
+            cost.add(total * t.get(tau)?);
         }
         steps.add(total * mass_pow);
         flags.add(flag * mass_pow);
         if (tau + 1) % (z0 + 1) == 0 {
-            let done_cost = q >= 1.0 || cost.window_done(q);
+            let done_cost = traces.is_none() || cost.window_done(q);
             if tau >= MAX_TAU {
                 return Err(Error::TooLarge {
                     arg: "beta".into(),
@@ -157,7 +176,11 @@ pub fn cycle(traces: &mut ScaledTraces<'_>, walk: &Walk, beta: f64) -> Result<Cy
         mass_pow *= ct;
     }
     Ok(Cycle {
-        cost: if q >= 1.0 { f64::INFINITY } else { cost.total },
+        cost: match traces {
+            Some(_) => cost.total,
+            None if q.is_finite() => f64::INFINITY, // past the growth condition
+            None => f64::NAN,                       // no traces asked for
+        },
         steps: steps.total,
         flags: flags.total,
     })
@@ -218,7 +241,7 @@ mod tests {
     }
 
     fn run(sys: &LinearSystem, w: &Walk, beta: f64) -> Cycle {
-        cycle(&mut ScaledTraces::new(sys, w), w, beta).unwrap()
+        cycle(Some(&mut ScaledTraces::new(sys, w)), w, beta).unwrap()
     }
 
     /// The (τ, z) chain of the protocol with forging, built state by state and iterated to

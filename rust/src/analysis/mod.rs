@@ -21,12 +21,17 @@
 
 use std::sync::atomic::{AtomicBool, AtomicU64};
 
+mod attacks;
+mod rates;
+
+pub use rates::{flag_rates, FlagRates};
+
 use crate::attack::Attack;
 use crate::chain::AttackChain;
 use crate::error::{Error, Result};
 use crate::general::general_attack_chain;
 use crate::montecarlo::{self, McConfig, McResult, McSchedule};
-use crate::online::{check_lam, OnlineDesign, Walk};
+use crate::online::{check_lam, OnlineDesign};
 use crate::pattern::{self, tau_needed, Segments};
 use crate::schedules::{self, offline_schedule, Ratio};
 use crate::sweep::{self, Sweep};
@@ -53,35 +58,6 @@ impl Schedule {
             Schedule::Online(d) => McSchedule::Online { z0: d.z0, mu: d.mu },
         })
     }
-}
-
-/// Flag-ACKs per step in the long run.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct FlagRates {
-    /// Sent by the remote detector.
-    pub sent: f64,
-    /// Delivered to the sensor (sent minus blocked): the sensor's high-power rate.
-    pub delivered: f64,
-}
-
-/// Long-run flag-ACK rates under an attack (`None`: no attack). They depend on λ, the design and
-/// the attack only, not on the system. With every flag-ACK blocked the detector sends
-/// λ u / (1 - u) per step: each arrival starts a walk that flags 1/(1-u) - 1 = u/(1-u) times on
-/// average before the next arrival, and arrivals come at rate λ.
-pub fn flag_rates(lam: f64, design: OnlineDesign, attack: Option<&Attack>) -> Result<FlagRates> {
-    if let Some(a) = attack.filter(|a| a.blocks_every_flag()) {
-        a.validate()?;
-        check_lam(lam)?;
-        design.validate()?;
-        return Ok(FlagRates {
-            sent: lam * design.flag_probability(lam) / design.no_flag_probability(lam),
-            delivered: 0.0,
-        });
-    }
-    let depth = attack.map_or(0, Segments::depth);
-    let seg = Segments::masses_only(&Walk::new(lam, design, 0.0)?, depth)?;
-    let (sent, delivered) = seg.attack_flag_rates(attack)?;
-    Ok(FlagRates { sent, delivered })
 }
 
 /// The attacker threshold β̄ in its two definitions (see [`LinearSystem::beta_bar`]).
@@ -159,16 +135,6 @@ impl LinearSystem {
     /// Segments of the memory walk deep enough for `kmax` blocked flags in a row.
     fn segments(&self, lam: f64, design: OnlineDesign, kmax: u64) -> Result<Segments> {
         Segments::for_system(self, lam, design, kmax)
-    }
-
-    /// Stationary J under an attack (eq. (13)-(14) for the paper's attack; the renewal form of
-    /// [`crate::pattern`] for any mask and any μ). An attack that blocks every flag-ACK is
-    /// refused: its cost is [`LinearSystem::j_max`].
-    pub fn j_attack(&self, lam: f64, design: OnlineDesign, attack: &Attack) -> Result<f64> {
-        attack.validate()?;
-        attack.check_lets_flags_through()?;
-        self.segments(lam, design, Segments::depth(attack))?
-            .j_attack(attack)
     }
 
     /// J in the large-period limit r, t → ∞ with r/t → β: the worst an attacker with budget β
@@ -381,23 +347,6 @@ mod tests {
             .unwrap();
         assert!(below.online && !above.online);
         assert_eq!(below.beta_bar, bar.limit);
-    }
-
-    #[test]
-    fn flag_rates_without_attack_are_the_high_power_rate() {
-        let d = OnlineDesign::new(3, 0.4).unwrap();
-        let rates = flag_rates(0.3, d, None).unwrap();
-        let rate = d.high_power_rate(0.3).unwrap();
-        assert!((rates.sent - rate).abs() < 1e-15 && (rates.delivered - rate).abs() < 1e-15);
-        // Blocking 1 of 5 delivers 4/5 of what is sent.
-        let a = Attack::periodic(1, 5).unwrap();
-        let r = flag_rates(0.3, d, Some(&a)).unwrap();
-        assert!((r.delivered - 0.8 * r.sent).abs() < 1e-15);
-        // All blocked: the detector flags u/(1-u) times per arrival, arrivals at rate λ.
-        let all = Attack::mask(vec![true]).unwrap();
-        let r = flag_rates(0.3, d, Some(&all)).unwrap();
-        let u = 0.7f64.powi(3) * (0.4 + 0.6 * 0.7);
-        assert!((r.sent - 0.3 * u / (1.0 - u)).abs() < 1e-15 && r.delivered == 0.0);
     }
 
     #[test]
