@@ -151,3 +151,55 @@ def explore_mask_chain(lam, z0, mask, mu=1.0):
         for d, p in succ(s):
             T[k, index[d]] += p
     return order, T
+
+
+def explore_any_chain(lam, z0, mu=1.0, block=(0.0,), gamma=0.0, tau_cap=None):
+    """The protocol's (tau, zeros, sigma) chain under blocking and forging, by breadth-first
+    exploration: the flag counted sigma is blocked with probability block[sigma % len(block)]
+    (0/1 for a periodic mask, beta with len(block) == 1 for independent blocking), and on every
+    step without a genuine flag a flag is forged with probability gamma (the sensor then uses high
+    power and the next step restarts). A step that would pass tau_cap restarts instead: the
+    mass beyond the cap must be negligible. Returns (states, dense row-stochastic T)."""
+    a, t = 1.0 - lam, len(block)
+    cap = float("inf") if tau_cap is None else tau_cap
+
+    def st(tau, z, sigma):
+        return (tau, z, sigma) if tau <= cap else (0, 0, sigma)
+
+    def succ(state):
+        tau, z, sigma = state
+        flag = 1.0 if z == z0 + 1 else (mu if z == z0 else 0.0)
+        out = []
+        if flag > 0:
+            nxt, b = (sigma + 1) % t, block[sigma]
+            out += [(st(0, 0, nxt), flag * (1 - b) + flag * b * lam), (st(tau + 1, 1, nxt), flag * b * a)]
+        if flag < 1:
+            out += [(st(0, 0, sigma), (1 - flag) * (gamma + (1 - gamma) * lam)),
+                    (st(tau + 1, z + 1, sigma), (1 - flag) * (1 - gamma) * a)]
+        return [(s, p) for s, p in out if p > 0]
+
+    index = {(0, 0, 0): 0}
+    order = [(0, 0, 0)]
+    i = 0
+    while i < len(order):
+        for s, _ in succ(order[i]):
+            if s not in index:
+                index[s] = len(order)
+                order.append(s)
+        i += 1
+    T = np.zeros((len(order), len(order)))
+    for s, k in index.items():
+        for d, p in succ(s):
+            T[k, index[d]] += p
+    return order, T
+
+
+def stationary_power(T, iterations=2000):
+    """Stationary law by power iteration from the uniform law. Each entry is built from products
+    of transition probabilities, so tiny entries keep their relative accuracy (a dense solve has
+    absolute errors of about 1e-17, too coarse where they meet traces of 1e9)."""
+    pi = np.full(T.shape[0], 1.0 / T.shape[0])
+    for _ in range(iterations):
+        pi = pi @ T
+        pi /= pi.sum()
+    return pi

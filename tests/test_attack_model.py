@@ -99,10 +99,10 @@ def test_simulate_and_curve_accept_attack_objects(paper):
 
 
 def test_flag_rates_are_a_function_of_the_protocol_alone():
-    sent, delivered = fa.flag_rates(LAM, Z0)
-    assert sent == delivered == pytest.approx(1 / 7, rel=1e-14)
+    sent, delivered, forged = fa.flag_rates(LAM, Z0)
+    assert sent == delivered == pytest.approx(1 / 7, rel=1e-14) and forged == 0
     for att, mu in [(fa.PeriodicBlocking(1, 5), 1.0), (fa.MaskBlocking([1, 0, 1, 0, 0, 0]), 0.3)]:
-        sent, delivered = fa.flag_rates(0.3, 3, att, mu)
+        sent, delivered, _ = fa.flag_rates(0.3, 3, att, mu)
         assert delivered == pytest.approx(sent * (1 - float(att.beta)), rel=1e-14)
         # Independent: the chain's probability of a flag that gets through.
         states, T = explore_mask_chain(0.3, 3, list(att.mask), mu)
@@ -111,7 +111,7 @@ def test_flag_rates_are_a_function_of_the_protocol_alone():
         assert_allclose(sent, pi @ p_flag, rtol=1e-10)
     # Every flag blocked: each arrival starts a walk that flags u/(1-u) times on average.
     u = 0.7**3 * (0.3 + 0.7 * 0.7)
-    sent, delivered = fa.flag_rates(0.3, 3, fa.MaskBlocking([1]), 0.3)
+    sent, delivered, _ = fa.flag_rates(0.3, 3, fa.MaskBlocking([1]), 0.3)
     assert sent == pytest.approx(0.3 * u / (1 - u), rel=1e-14) and delivered == 0.0
 
 

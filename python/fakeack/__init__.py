@@ -15,10 +15,11 @@ from .attack import (
     stationary_distribution,
     stationary_gth,
 )
-from .attacks import MaskBlocking, PeriodicBlocking
+from .attacks import FlagInjection, MaskBlocking, PeriodicBlocking, RandomBlocking
 from .detection import (
     Detection,
     DetectionRates,
+    FlagRates,
     delivered_flag_rate,
     detect_attack,
     detection_rates,
@@ -34,6 +35,14 @@ from .montecarlo import (
     TraceCurve,
     expected_trace_curve,
     simulate,
+)
+from .other_attacks import (
+    RandomSweep,
+    beta_bar_random,
+    energy_per_step,
+    high_power_rate,
+    random_blocking_sweep,
+    rate_matching_attack,
 )
 from .schedules import (
     OnlineDesign,
@@ -62,8 +71,17 @@ from .threshold import (
 __version__ = "0.1.0"
 
 __all__ = [
+    "FlagInjection",
+    "FlagRates",
     "MaskBlocking",
     "PeriodicBlocking",
+    "RandomBlocking",
+    "RandomSweep",
+    "beta_bar_random",
+    "energy_per_step",
+    "high_power_rate",
+    "random_blocking_sweep",
+    "rate_matching_attack",
     "Detection",
     "DetectionRates",
     "delivered_flag_rate",

@@ -18,7 +18,16 @@ import numpy as np
 from . import _fakeack
 from ._validate import as_fraction, as_int
 
-__all__ = ["Attack", "MAX_MASK", "MaskBlocking", "PeriodicBlocking", "as_attack", "as_mask"]
+__all__ = [
+    "Attack",
+    "FlagInjection",
+    "MAX_MASK",
+    "MaskBlocking",
+    "PeriodicBlocking",
+    "RandomBlocking",
+    "as_attack",
+    "as_mask",
+]
 
 #: Longest blocking mask (in flag-ACKs per period) accepted.
 MAX_MASK = 10_000_000
@@ -142,8 +151,104 @@ class MaskBlocking:
         return f"block mask {self.label}"
 
 
+def _probability(name: str, x: Any) -> float:
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, Fraction, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a number in [0, 1], got {type(x).__name__}")
+    v = float(x)
+    if not (math.isfinite(v) and 0.0 <= v <= 1.0):
+        raise ValueError(f"{name} must lie in [0, 1], got {v}")
+    return v
+
+
+@dataclass(frozen=True)
+class RandomBlocking:
+    """Block each flag-ACK independently with probability ``beta``: a memoryless jammer.
+
+    Unlike :class:`PeriodicBlocking` it keeps no counter. Its cost is exact in closed renewal form
+    (:func:`fakeack.j_attack`); ``beta = 0`` is no attack and ``beta = 1`` blocks every flag
+    (:func:`fakeack.j_max`).
+
+    Parameters
+    ----------
+    beta : float
+        Probability of blocking each flag-ACK, in [0, 1].
+
+    Examples
+    --------
+    >>> RandomBlocking(0.3)
+    RandomBlocking(beta=0.3)
+    >>> str(RandomBlocking(0.3))
+    'block each flag-ACK with probability 0.3'
+    """
+
+    beta: float
+
+    def __init__(self, beta: Any):
+        object.__setattr__(self, "beta", _probability("beta", beta))
+
+    @property
+    def label(self) -> str:
+        """``"random:beta"``, the form configs and the command line use."""
+        return f"random:{self.beta:g}"
+
+    def __str__(self) -> str:
+        return f"block each flag-ACK with probability {self.beta:g}"
+
+
+@dataclass(frozen=True)
+class FlagInjection:
+    """Forge a flag-ACK with probability ``gamma`` on every step the detector sends none.
+
+    The sensor then uses high power on the next step (Type B: a forged flag packet; Type A: the
+    ACK bit flipped to 1; both have the same statistics). Forging lowers the estimation error but
+    spends the sensor's energy: see :func:`fakeack.energy_per_step`. ``block`` combines it with a
+    blocking attack on the genuine flag-ACKs.
+
+    Parameters
+    ----------
+    gamma : float
+        Probability of a forged flag-ACK on a step without a genuine one, in [0, 1].
+    block : RandomBlocking, PeriodicBlocking, MaskBlocking or None, optional
+        The attack on the genuine flag-ACKs (default none).
+
+    Examples
+    --------
+    >>> FlagInjection(0.1)
+    FlagInjection(gamma=0.1, block=None)
+    >>> str(FlagInjection(0.1, RandomBlocking(0.3)))
+    'forge a flag-ACK with probability 0.1, and block each flag-ACK with probability 0.3'
+    """
+
+    gamma: float
+    block: PeriodicBlocking | MaskBlocking | RandomBlocking | None = None
+
+    def __init__(self, gamma: Any, block: Any = None):
+        object.__setattr__(self, "gamma", _probability("gamma", gamma))
+        if block is not None and not isinstance(block, (PeriodicBlocking, MaskBlocking, RandomBlocking)):
+            raise TypeError(
+                "block must be None, fakeack.RandomBlocking, fakeack.PeriodicBlocking or "
+                f"fakeack.MaskBlocking, got {type(block).__name__}"
+            )
+        object.__setattr__(self, "block", block)
+
+    @property
+    def beta(self) -> Fraction | float:
+        """The budget of the blocking part (0 without one)."""
+        return 0 if self.block is None else self.block.beta
+
+    @property
+    def label(self) -> str:
+        """``"inject:gamma"``, with ``+`` and the blocking attack's label when there is one."""
+        head = f"inject:{self.gamma:g}"
+        return head if self.block is None else f"{head}+{self.block.label}"
+
+    def __str__(self) -> str:
+        head = f"forge a flag-ACK with probability {self.gamma:g}"
+        return head if self.block is None else f"{head}, and {self.block}"
+
+
 #: Every attack type (for annotations).
-Attack = PeriodicBlocking | MaskBlocking
+Attack = PeriodicBlocking | MaskBlocking | RandomBlocking | FlagInjection
 
 _RT = re.compile(r"^\s*(\d+)\s*/\s*(\d+)\s*$")
 
@@ -169,17 +274,43 @@ def _periodic(r: int, t: int, value: Any, name: str) -> PeriodicBlocking:
     return PeriodicBlocking(r, t)
 
 
-def as_attack(value: Any, name: str = "attack") -> PeriodicBlocking | MaskBlocking | None:
+def _attack_from_text(value: str, name: str) -> Attack:
+    """``"r/t"``, ``"random:beta"``, ``"inject:gamma"`` or ``"inject:gamma+<blocking>"``."""
+    text = value.strip()
+    head, plus, rest = text.partition("+")
+    if head.startswith("inject:"):
+        gamma = _number_text(head[len("inject:"):], name)
+        block = _attack_from_text(rest, name) if plus else None
+        if isinstance(block, FlagInjection):
+            raise ValueError(f"{name}: an injection's blocking part cannot inject, got {value!r}")
+        return FlagInjection(gamma, block)
+    if plus:
+        raise ValueError(f"{name}: only 'inject:gamma+...' combines attacks, got {value!r}")
+    if text.startswith("random:"):
+        return RandomBlocking(_number_text(text[len("random:"):], name))
+    return _periodic_from_text(text, name)
+
+
+def _number_text(text: str, name: str) -> float:
+    try:
+        return float(as_fraction(name, text.strip()))
+    except ValueError:
+        raise ValueError(f"{name}: cannot read {text!r} as a probability") from None
+
+
+def as_attack(value: Any, name: str = "attack") -> Attack | None:
     """Any accepted way of writing an attack, as an attack object (``None``: no attack).
 
     Parameters
     ----------
-    value : None, PeriodicBlocking, MaskBlocking, (r, t), str or number
+    value : None, attack object, (r, t), str or number
         An attack object is returned as it is. A pair ``(r, t)`` is
         ``PeriodicBlocking(r, t)``. A string ``"r/t"`` is kept as written (``"2/6"`` is not
-        ``"1/3"``); a decimal string such as ``"0.2"``, an exact ``Fraction``, an ``int`` 0, or a
-        float in ``[0, 1)`` (read as the simplest fraction with denominator up to 1000 that equals
-        it to 1e-12) gives the budget in lowest terms.
+        ``"1/3"``); ``"random:0.3"`` is ``RandomBlocking(0.3)``; ``"inject:0.1"`` is
+        ``FlagInjection(0.1)`` and ``"inject:0.1+random:0.3"`` (or ``"inject:0.1+1/5"``) adds a
+        blocking attack. A decimal string such as ``"0.2"``, an exact ``Fraction``, an ``int`` 0,
+        or a float in ``[0, 1)`` (read as the simplest fraction with denominator up to 1000 that
+        equals it to 1e-12) gives a periodic budget in lowest terms.
     name : str, optional
         The argument's name in error messages.
 
@@ -194,16 +325,16 @@ def as_attack(value: Any, name: str = "attack") -> PeriodicBlocking | MaskBlocki
     ValueError
         For a budget outside ``[0, 1)`` or a malformed string.
     """
-    if value is None or isinstance(value, (PeriodicBlocking, MaskBlocking)):
+    if value is None or isinstance(value, (PeriodicBlocking, MaskBlocking, RandomBlocking, FlagInjection)):
         return value
     if isinstance(value, tuple) and len(value) == 2:
         return PeriodicBlocking(*value)
     if isinstance(value, str):
-        return _periodic_from_text(value, name)
+        return _attack_from_text(value, name)
     if isinstance(value, bool) or not isinstance(value, (int, float, Fraction)):
         raise TypeError(
-            f"{name} must be None, fakeack.PeriodicBlocking, fakeack.MaskBlocking, an (r, t) pair "
-            f"or a fraction 'r/t', got {type(value).__name__}"
+            f"{name} must be None, an attack (fakeack.PeriodicBlocking, MaskBlocking, RandomBlocking, "
+            f"FlagInjection), an (r, t) pair or a string such as '1/5', got {type(value).__name__}"
         )
     if isinstance(value, float):
         if not math.isfinite(value):
@@ -216,18 +347,20 @@ def as_attack(value: Any, name: str = "attack") -> PeriodicBlocking | MaskBlocki
     return _periodic(f.numerator, f.denominator, value, name)
 
 
-def core_attack(attack: PeriodicBlocking | MaskBlocking | None) -> Any:
+def core_attack(attack: Attack | None) -> Any:
     """The compiled core's form of a validated attack object (``None`` stays ``None``)."""
     if attack is None:
         return None
     if isinstance(attack, PeriodicBlocking):
         return _fakeack.Attack.periodic(attack.r, attack.t)
+    if isinstance(attack, RandomBlocking):
+        return _fakeack.Attack.random(attack.beta)
+    if isinstance(attack, FlagInjection):
+        return _fakeack.Attack.injection(attack.gamma, core_attack(attack.block))
     return _fakeack.Attack.mask(list(attack.mask))
 
 
-def attack_argument(
-    r: Any, t: Any, attack: Any
-) -> PeriodicBlocking | MaskBlocking:
+def attack_argument(r: Any, t: Any, attack: Any) -> Attack:
     """The attack of a call that takes either ``r, t`` or ``attack=`` (or an attack object as r)."""
     if attack is None and t is None and r is not None and not isinstance(r, (int, np.integer)):
         attack, r = r, None

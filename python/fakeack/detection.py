@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from scipy.special import ndtr, ndtri
@@ -81,12 +81,26 @@ def flag_interval_moments(lam: Any, z0: Any, mu: Any = 1.0) -> tuple[float, floa
     return 1.0 + mean_t, max(second - mean_t**2, 0.0)
 
 
-def flag_rates(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> tuple[float, float]:
-    r"""Long-run flag-ACKs per step, (sent by the detector, delivered to the sensor), exact.
+class FlagRates(NamedTuple):
+    """Long-run flag-ACKs per step (see :func:`flag_rates`)."""
 
-    Each level of the attacker's counter is left at the same rate :math:`F = u/D` (the renewal
-    form of :func:`fakeack.j_attack`, with D its normaliser), so a period of t flags sends
-    :math:`tF` and delivers :math:`(t - \text{blocked})F`. They do not depend on the plant.
+    sent: float
+    """Genuine flag-ACKs sent by the remote detector."""
+    delivered: float
+    """Flag-ACKs reaching the sensor, genuine or forged: the sensor's high-power rate."""
+    forged: float
+    """Forged flag-ACKs (part of ``delivered``)."""
+
+
+def flag_rates(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> FlagRates:
+    r"""Long-run flag-ACKs per step: sent by the detector, reaching the sensor, forged (exact).
+
+    Under a periodic attack each level of the attacker's counter is left at the same rate
+    :math:`F = u/D` (the renewal form of :func:`fakeack.j_attack`, with D its normaliser), so a
+    period of t flags sends :math:`tF` and delivers :math:`(t - \text{blocked})F`. Independent
+    blocking delivers :math:`1-\beta` of what is sent; a :class:`fakeack.FlagInjection` adds
+    :math:`\gamma(1 - \text{sent})` forged flags, which the sensor cannot tell from genuine
+    ones, so they count as delivered. The rates do not depend on the plant.
 
     Parameters
     ----------
@@ -94,29 +108,32 @@ def flag_rates(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> tuple[fl
         Arrival probability :math:`\lambda \in (0, 1)` at low power.
     z0 : int
         Memory length of the event detector.
-    attack : None, PeriodicBlocking, MaskBlocking or (r, t), optional
-        ``None`` gives the online high-power rate twice.
+    attack : None, attack or (r, t), optional
+        Any attack (:class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
+        :class:`fakeack.RandomBlocking`, :class:`fakeack.FlagInjection`).
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
 
     Returns
     -------
-    (sent, delivered) : tuple of float
-        ``(rate, 0.0)`` with the all-blocked rate :math:`\lambda u/(1-u)` when every flag-ACK is
-        blocked.
+    FlagRates
+        ``(sent, delivered, forged)``; with every flag-ACK blocked and none forged, ``sent`` is
+        the all-blocked rate :math:`\lambda u/(1-u)` and ``delivered`` is 0.
 
     Examples
     --------
-    >>> sent, delivered = flag_rates(0.5, 2)
-    >>> round(sent, 12) == round(delivered, 12) == round(1 / 7, 12)
+    >>> sent, delivered, forged = flag_rates(0.5, 2)
+    >>> round(sent, 12) == round(delivered, 12) == round(1 / 7, 12) and forged == 0
     True
     """
     lam, z0, mu = _online(lam, z0, mu)
-    return _fakeack.flag_rates(lam, z0, mu, core_attack(as_attack(attack)))
+    return FlagRates(*_fakeack.flag_rates(lam, z0, mu, core_attack(as_attack(attack))))
 
 
 def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
-    r"""Long-run flag-ACKs delivered to the sensor per step under an attack (exact).
+    r"""Long-run flag-ACKs reaching the sensor per step under an attack (exact).
+
+    Genuine and forged flags count alike: the sensor cannot tell them apart.
 
     Parameters
     ----------
@@ -124,8 +141,8 @@ def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) ->
         Arrival probability :math:`\lambda \in (0, 1)` at low power.
     z0 : int
         Memory length of the event detector.
-    attack : None, PeriodicBlocking, MaskBlocking or (r, t)
-        ``None`` gives the online high-power rate.
+    attack : None, attack or (r, t)
+        Any attack; ``None`` gives the online high-power rate.
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
     """

@@ -30,28 +30,61 @@ const START: GeneralState = GeneralState {
     sigma: 0,
 };
 
-/// The chain of the protocol with memory z0 used with probability μ (z0 + 1 otherwise) and the
-/// attacker blocking flag number σ of each period iff `mask[σ]`. States are numbered in
-/// breadth-first order from the paper's initial state (0, 0, 0).
+/// The chain of the protocol with memory z0 used with probability μ (z0 + 1 otherwise) under
+/// any attack: flag number σ of each period is blocked with probability `mask[σ]` (0 or 1 for
+/// a periodic attack; β for independent blocking, with a period of one), and a flag-ACK is forged
+/// with probability γ on every step without a genuine one. States are numbered in breadth-first
+/// order from the paper's initial state (0, 0, 0).
+///
+/// An attack that can block flags without end (independent blocking with β > 0, a mask of all
+/// ones) makes the chain infinite: it is refused, unless `tau_cap` bounds the holding time (the
+/// exact transient curves over H steps need τ < H only, since τ_k <= k - 1).
 pub fn general_attack_chain(
     lam: f64,
     design: OnlineDesign,
     attack: &Attack,
 ) -> Result<(Vec<GeneralState>, Csr)> {
+    capped_attack_chain(lam, design, attack, None)
+}
+
+/// [`general_attack_chain`] with holding times above `tau_cap` (if given) folded into
+/// `tau_cap`: exact for the first `tau_cap + 1` steps from the initial state.
+pub fn capped_attack_chain(
+    lam: f64,
+    design: OnlineDesign,
+    attack: &Attack,
+    tau_cap: Option<u64>,
+) -> Result<(Vec<GeneralState>, Csr)> {
     check_lam(lam)?;
     design.validate()?;
     attack.validate()?;
-    if attack.blocks_every_flag() {
+    let gamma = attack.forging();
+    let block: Vec<f64> = match attack.genuine_blocking() {
+        None => vec![0.0],
+        Some(Attack::Random { beta }) => vec![*beta],
+        Some(b) => b.blocking_mask()?.iter().map(|&x| f64::from(u8::from(x))).collect(),
+    };
+    let endless = match attack.genuine_blocking() {
+        Some(Attack::Random { beta }) => *beta > 0.0,
+        Some(b) => b.blocks_every_flag(),
+        None => false,
+    };
+    if endless && tau_cap.is_none() {
         return Err(Error::invalid(
-            "mask",
-            "blocks every flag-ACK: the chain is infinite (its cost is J_max)",
+            "attack",
+            "can block flag-ACKs without end: the chain is infinite (its cost is J_max for a \
+             mask of all ones; independent blocking is solved in closed form)",
         ));
     }
-    let mask = attack.blocking_mask()?;
+    let cap = tau_cap.unwrap_or(u64::MAX);
     let OnlineDesign { z0, mu } = design;
     let a = 1.0 - lam;
-    let t = mask.len() as u64;
-    let state = |tau, zeros, sigma| GeneralState { tau, zeros, sigma };
+    let t = block.len() as u64;
+    let state = |tau: u64, zeros, sigma| GeneralState {
+        tau: tau.min(cap),
+        zeros,
+        sigma,
+    };
     let succ = |GeneralState {
                     tau,
                     zeros: z,
@@ -65,21 +98,20 @@ pub fn general_attack_chain(
         } else {
             0.0
         };
-        let mut out = Vec::with_capacity(4);
+        let mut out = Vec::with_capacity(5);
         if flag > 0.0 {
             let next = (sigma + 1) % t;
-            if mask[sigma as usize] {
-                // Blocked: memory reset, sensor stays on low power.
-                out.push((state(0, 0, next), flag * lam));
-                out.push((state(tau + 1, 1, next), flag * a));
-            } else {
-                // Delivered: high power next step, the packet arrives.
-                out.push((state(0, 0, next), flag));
-            }
+            let b = block[sigma as usize];
+            // Blocked: memory reset, the sensor stays on low power.
+            out.push((state(0, 0, next), flag * b * lam));
+            out.push((state(tau + 1, 1, next), flag * b * a));
+            // Delivered: high power next step, the packet arrives.
+            out.push((state(0, 0, next), flag * (1.0 - b)));
         }
         if flag < 1.0 {
-            out.push((state(0, 0, sigma), (1.0 - flag) * lam));
-            out.push((state(tau + 1, z + 1, sigma), (1.0 - flag) * a));
+            // No genuine flag: a forged one or an arrival restarts the walk.
+            out.push((state(0, 0, sigma), (1.0 - flag) * (gamma + (1.0 - gamma) * lam)));
+            out.push((state(tau + 1, z + 1, sigma), (1.0 - flag) * (1.0 - gamma) * a));
         }
         out
     };
@@ -184,6 +216,28 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn random_blocking_and_forging_match_the_closed_form() {
+        // A cap far beyond where the mass lives makes the capped chain's J the stationary one.
+        let sys = crate::LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap();
+        let tr = sys.h_traces(300);
+        let design = OnlineDesign::new(2, 0.7).unwrap();
+        for attack in [
+            Attack::random(0.4).unwrap(),
+            Attack::injection(0.1, None).unwrap(),
+            Attack::injection(0.05, Some(Attack::periodic(1, 3).unwrap())).unwrap(),
+            Attack::injection(0.2, Some(Attack::random(0.6).unwrap())).unwrap(),
+        ] {
+            let (states, csr) = capped_attack_chain(0.5, design, &attack, Some(300)).unwrap();
+            let pi = gth(&csr).unwrap();
+            let j: f64 = states.iter().zip(&pi).map(|(s, p)| p * tr[s.tau as usize]).sum();
+            let expect = sys.j_attack(0.5, design, &attack).unwrap();
+            assert!((j - expect).abs() < 1e-10 * expect, "{attack}: {j} vs {expect}");
+        }
+        let endless = general_attack_chain(0.5, design, &Attack::random(0.4).unwrap());
+        assert!(endless.unwrap_err().to_string().starts_with("attack:"));
     }
 
     #[test]

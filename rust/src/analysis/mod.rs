@@ -29,7 +29,7 @@ pub use rates::{flag_rates, FlagRates};
 use crate::attack::Attack;
 use crate::chain::AttackChain;
 use crate::error::{Error, Result};
-use crate::general::general_attack_chain;
+use crate::general::capped_attack_chain;
 use crate::montecarlo::{self, McConfig, McResult, McSchedule};
 use crate::online::{check_lam, OnlineDesign};
 use crate::pattern::{self, tau_needed, Segments};
@@ -235,7 +235,9 @@ impl LinearSystem {
             Schedule::Online(design) => {
                 let none = Attack::Mask(vec![false]);
                 let attack = attack.unwrap_or(&none);
-                let (states, csr) = general_attack_chain(lam, design, attack)?;
+                // τ_k <= k - 1: a cap at the horizon is exact and bounds every attack's chain.
+                let cap = Some(horizon as u64);
+                let (states, csr) = capped_attack_chain(lam, design, attack, cap)?;
                 let taus: Vec<u64> = states.iter().map(|s| s.tau).collect();
                 let top = taus.iter().copied().max().unwrap_or(0);
                 let tr = self.checked_weighted_traces(1.0, top as u128, "attack")?;

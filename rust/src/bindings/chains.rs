@@ -27,7 +27,7 @@ pub(crate) fn high_power_rate(lam: f64, z0: u64, mu: f64) -> PyResult<f64> {
     Ok(design(z0, mu)?.high_power_rate(lam)?)
 }
 
-/// (flag-ACKs sent, delivered) per step.
+/// (flag-ACKs sent, reaching the sensor, forged) per step.
 #[pyfunction]
 #[pyo3(signature = (lam, z0, mu, attack))]
 pub(crate) fn flag_rates(
@@ -35,9 +35,9 @@ pub(crate) fn flag_rates(
     z0: u64,
     mu: f64,
     attack: Option<&Bound<'_, PyAttack>>,
-) -> PyResult<(f64, f64)> {
+) -> PyResult<(f64, f64, f64)> {
     let rates = analysis::flag_rates(lam, design(z0, mu)?, attack_of(attack).as_ref())?;
-    Ok((rates.sent, rates.delivered))
+    Ok((rates.sent, rates.delivered, rates.forged))
 }
 
 #[pyfunction]

@@ -73,6 +73,21 @@ impl PyAttack {
         })
     }
 
+    #[staticmethod]
+    fn random(beta: f64) -> PyResult<Self> {
+        Ok(PyAttack {
+            inner: Attack::random(beta)?,
+        })
+    }
+
+    #[staticmethod]
+    #[pyo3(signature = (gamma, block))]
+    fn injection(gamma: f64, block: Option<&Bound<'_, PyAttack>>) -> PyResult<Self> {
+        Ok(PyAttack {
+            inner: Attack::injection(gamma, attack_of(block))?,
+        })
+    }
+
     fn __str__(&self) -> String {
         self.inner.to_string()
     }

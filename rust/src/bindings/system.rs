@@ -199,6 +199,36 @@ impl PySystem {
         Ok(out.into_pyarray(py))
     }
 
+    /// J under independent blocking at each beta (forging with probability gamma).
+    #[allow(clippy::too_many_arguments)]
+    fn j_random_sweep<'py>(
+        &self,
+        py: Python<'py>,
+        lam: f64,
+        z0: u64,
+        mu: f64,
+        gamma: f64,
+        betas: Vec<f64>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let d = design(z0, mu)?;
+        let j = py.detach(|| self.inner.j_random_sweep(lam, d, gamma, &betas))?;
+        Ok(j.into_pyarray(py))
+    }
+
+    /// The root of J(independent blocking at beta) = J_offline.
+    fn beta_bar_random(
+        &self,
+        py: Python<'_>,
+        lam: f64,
+        p: u64,
+        q: u64,
+        z0: u64,
+        mu: f64,
+    ) -> PyResult<f64> {
+        let (ratio, d) = (Ratio::new(p, q)?, design(z0, mu)?);
+        Ok(py.detach(|| self.inner.beta_bar_random(lam, ratio, d))?)
+    }
+
     /// (worst mask, its J, J of the consecutive mask).
     fn worst_mask(
         &self,
