@@ -5,6 +5,7 @@ import io
 import json
 import math
 import os
+import re
 import stat
 import subprocess
 import sys
@@ -23,7 +24,11 @@ HAS_SIMULATE = hasattr(fa._fakeack, "simulate")
 needs_simulate = pytest.mark.skipif(not HAS_SIMULATE, reason="compiled core has no simulate yet")
 needs_mpl = pytest.mark.skipif(not plots.have_matplotlib(), reason="matplotlib not installed")
 
-FIGURES = {f"{stem}.{ext}" for stem in ("fig3_jk", "fig4_beta", "fig_stationary") for ext in ("png", "svg")}
+FIGURES = {
+    f"{stem}.{ext}"
+    for stem in ("fig3_jk", "fig4_beta", "fig_stationary", "fig_attack_families")
+    for ext in ("png", "svg")
+}
 ROW_KEYS = ["j_offline", "j_online", "j_attack_1/5", "j_attack_2/3", "j_max", "beta_bar_limit", "beta_bar_finite"]
 
 # A valid config to break one key at a time.
@@ -421,3 +426,43 @@ def test_plot_functions_draw_on_given_axes():
     pi = fa.stationary_distribution(0.5, 2, 1, 3)
     assert plots.plot_stationary(states, pi, ax=axes[2], r=1) is fig
     assert axes[2].get_xlabel().startswith("holding time")
+
+
+def test_reproduce_reports_the_other_attacks(capsys):
+    rc, out, _ = run(capsys, "reproduce", "--runs", 0, "--no-figures")
+    assert rc == 0
+    assert "other attacks (beyond the paper" in out
+    for label in ("random blocking beta=1/5", "random blocking beta=2/3", "injection gamma=0.1",
+                  "rate matching beta=1/5", "beta-bar against random blocking"):
+        assert label in out
+    rc, out, _ = run(capsys, "reproduce", "--runs", 0, "--no-figures", "--json")
+    doc = json.loads(out)["other_attacks"]
+    assert len(doc["rows"]) == 4 and 0 < doc["beta_bar_random"] < 1
+    paper = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+    assert doc["rows"][0]["j"] == fa.j_attack(paper, 0.5, 2, attack=fa.RandomBlocking(0.2))
+    # The rate-matching attack spends exactly the budget.
+    assert abs(doc["rows"][3]["energy_per_step"] - 9 / 7) < 1e-12
+
+
+def test_analyze_config_with_random_and_injection(capsys, tmp_path):
+    cfg = tmp_path / "c.toml"
+    cfg.write_text(fa.config.example_text().replace("# random = [0.2, 0.5]", "random = [0.2, 0.5]")
+                   .replace("# inject = [0.05]", "inject = [0.05]").replace("[montecarlo]", "[x]")
+                   .split("[x]")[0])
+    rc, out, _ = run(capsys, "analyze", str(cfg))
+    assert rc == 0, out
+    assert "block each flag-ACK with probability 0.5" in out and "forge a flag-ACK with probability 0.05" in out
+    parsed = fa.config.load_config(cfg)
+    assert parsed.other_attacks == (fa.RandomBlocking(0.2), fa.RandomBlocking(0.5), fa.FlagInjection(0.05))
+
+
+@pytest.mark.parametrize("line, message", [
+    ("random = [1.5]", "random[0]: must lie in [0, 1]"),
+    ("inject = ['x']", "inject[0]: must be a number"),
+    ("random = 0.2", "random: must be an array"),
+    ("random = [0.2, 0.2]", "listed twice"),
+])
+def test_bad_other_attack_keys(tmp_path, line, message):
+    text = fa.config.example_text().replace("# random = [0.2, 0.5]", line)
+    with pytest.raises(fa.config.ConfigError, match=re.escape(message)):
+        fa.config.parse_config(fa.config.loads(text))

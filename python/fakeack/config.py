@@ -8,7 +8,8 @@ example (:func:`example_text`), which is the paper's system of Sec. V::
     [system]            # A, C, Q, R: scalars or nested lists (rows); lam: arrival probability
     [energy]            # ratio = "p/q", or Psi, Delta, delta (numbers or "p/q" strings)
     [online]            # design = true, or z0 (and mu, default 1)
-    [attack]            # betas = ["1/5", "2/3"]; optional [attack.sweep] t_max = 60
+    [attack]            # betas = ["1/5", "2/3"]; random = [0.2]; inject = [0.05];
+                        # optional [attack.sweep] t_max = 60
     [montecarlo]        # runs, horizon, seed, mode; omit the section to skip the Monte Carlo
 """
 
@@ -40,7 +41,7 @@ from ._config_values import (
     toml_kind,
 )
 from ._validate import MODES, PROTOCOLS, as_ratio
-from .attacks import PeriodicBlocking, as_attack
+from .attacks import FlagInjection, PeriodicBlocking, RandomBlocking, as_attack
 from .schedules import OnlineDesign, design_online, energy_ratio
 from .system import LinearSystem
 
@@ -67,7 +68,7 @@ _SECTIONS: dict[str, Section] = {
     "system": Section(("A", "C", "Q", "R", "lam"), "A, C, Q, R and lam are required"),
     "energy": Section(("ratio", "Psi", "Delta", "delta"), 'give ratio = "p/q", or Psi, Delta, delta'),
     "online": Section(("design", "z0", "mu")),
-    "attack": Section(("betas", "sweep")),
+    "attack": Section(("betas", "random", "inject", "sweep")),
     "montecarlo": Section(("runs", "horizon", "seed", "mode", "protocol")),
 }
 _SWEEP_SECTION = Section(("t_max",))
@@ -223,6 +224,28 @@ def _attacks(table: dict[str, Any]) -> tuple[PeriodicBlocking, ...]:
     return tuple(attacks)
 
 
+def _probabilities(table: dict[str, Any], key: str, make: Any) -> tuple[Any, ...]:
+    """``[attack] random`` / ``inject``: arrays of probabilities, each an attack object."""
+    if key not in table:
+        return ()
+    values = table[key]
+    if not isinstance(values, list):
+        raise config_error("attack", key, f"must be an array such as [0.2, 0.5], got {toml_kind(values)}")
+    out: list[Any] = []
+    for i, value in enumerate(values):
+        where = f"{key}[{i}]"
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise config_error("attack", where, f"must be a number in [0, 1], got {toml_kind(value)}")
+        try:
+            attack = make(value)
+        except ValueError as exc:
+            raise config_error("attack", where, strip_name(str(exc), str(exc).split()[0])) from None
+        if attack in out:
+            raise config_error("attack", where, f"{value} is listed twice")
+        out.append(attack)
+    return tuple(out)
+
+
 def _sweep_t_max(table: dict[str, Any]) -> int | None:
     """``[attack.sweep] t_max``, or None (no sweep)."""
     if "sweep" not in table:
@@ -288,6 +311,8 @@ class Config:
         Whether ``online`` came from :func:`fakeack.design_online` (spends the budget exactly).
     attacks : tuple of PeriodicBlocking
         ``[attack] betas``, each as written (``"2/6"`` blocks 2 in a row of 6).
+    other_attacks : tuple of RandomBlocking and FlagInjection
+        ``[attack] random`` (blocking probabilities) then ``inject`` (forging probabilities).
     sweep_t_max : int or None
         ``[attack.sweep] t_max``; None skips the sweep.
     montecarlo : MonteCarloConfig or None
@@ -302,6 +327,7 @@ class Config:
     online: OnlineDesign
     designed: bool
     attacks: tuple[PeriodicBlocking, ...] = ()
+    other_attacks: tuple[RandomBlocking | FlagInjection, ...] = ()
     sweep_t_max: int | None = None
     montecarlo: MonteCarloConfig | None = None
     source: str = "<string>"
@@ -342,6 +368,8 @@ def parse_config(data: dict[str, Any], source: str = "<string>") -> Config:
         online=online,
         designed=designed,
         attacks=_attacks(attack_table),
+        other_attacks=_probabilities(attack_table, "random", RandomBlocking)
+        + _probabilities(attack_table, "inject", FlagInjection),
         sweep_t_max=_sweep_t_max(attack_table),
         montecarlo=_montecarlo(data),
         source=source,

@@ -19,7 +19,7 @@ from ._report import system_text
 __all__ = ["write_figures"]
 
 
-def _save(fig: Any, outdir: Path, stem: str) -> list[Path]:
+def save_figure(fig: Any, outdir: Path, stem: str) -> list[Path]:
     """Write ``stem.png`` and ``stem.svg`` with no date or software stamp (reproducible bytes)."""
     import matplotlib
 
@@ -95,11 +95,11 @@ def write_figures(
             file=sys.stderr,
         )
         return []
-    written = _save(_jk_figure(analysis), outdir, "fig3_jk")
+    written = save_figure(_jk_figure(analysis), outdir, "fig3_jk")
     if analysis.sweep is not None and analysis.bar is not None:
-        written += _save(
+        written += save_figure(
             _beta_figure(analysis, analysis.sweep, analysis.bar, paper_beta_bar), outdir, "fig4_beta"
         )
     if stationary is not None:
-        written += _save(_stationary_figure(analysis, stationary), outdir, "fig_stationary")
+        written += save_figure(_stationary_figure(analysis, stationary), outdir, "fig_stationary")
     return written

@@ -14,6 +14,7 @@ from ..schedules import offline_schedule
 from ..study import Analysis, analyse
 from ._figures import write_figures
 from ._io import atomic_write, to_json
+from ._other import attack_rows
 from ._report import (
     analysis_json,
     decision_lines,
@@ -67,7 +68,9 @@ def _offline_text(cfg: Config) -> str:
     return f"period {cfg.ratio.denominator}"
 
 
-def _text(cfg: Config, analysis: Analysis, out: str | None, figures: list[Path]) -> str:
+def _text(
+    cfg: Config, analysis: Analysis, other: list[str], out: str | None, figures: list[Path]
+) -> str:
     lines = [
         f"fakeack analyze: {cfg.source}",
         f"  system {system_text(cfg.system)}; Tr Pbar = {float(np.trace(cfg.system.pbar)):.6f}",
@@ -78,6 +81,7 @@ def _text(cfg: Config, analysis: Analysis, out: str | None, figures: list[Path])
         *footnotes(analysis),
         "",
         *decision_lines(analysis),
+        *([""] + other if other else []),
     ]
     if not cfg.designed and analysis.bar is not None:
         lines += paragraph(
@@ -103,11 +107,14 @@ def run(args: argparse.Namespace) -> int:
     figures: list[Path] = []
     if args.out and not args.no_figures:
         figures = _figures(cfg, analysis, Path(args.out))
+    other, other_json = attack_rows(cfg.system, cfg.lam, cfg.ratio, cfg.online, cfg.other_attacks)
     document = {"command": "analyze", "config": cfg.source, **analysis_json(analysis), "figures": figures}
+    if other_json:
+        document["other_attacks"] = other_json
     if args.out:
         atomic_write(Path(args.out) / "analysis.json", to_json(document) + "\n")
     if args.json:
         print(to_json(document))
         return 0
-    print(_text(cfg, analysis, args.out, figures))
+    print(_text(cfg, analysis, other, args.out, figures))
     return 0

@@ -22,6 +22,7 @@ from ..study import (
 from ..system import LinearSystem
 from ._figures import write_figures
 from ._io import to_json
+from ._other import family_figure, reproduce_lines
 from ._report import (
     analysis_json,
     decision_lines,
@@ -42,7 +43,21 @@ _PAPER_NOTE = (
 )
 
 
-def _text(analysis: Analysis, figures: list[Path], out: Path, started: float) -> str:
+#: The paper's energies (Sec. V): Delta = 3, delta = 1 and Psi = 9/7 give the ratio 1/7.
+PAPER_DELTA, PAPER_DELTA_LOW = 3.0, 1.0
+
+
+def _other_attacks(analysis: Analysis) -> tuple[list[str], dict]:
+    bar = analysis.bar
+    return reproduce_lines(
+        analysis.system, PAPER_LAM, PAPER_RATIO, PAPER_DELTA, PAPER_DELTA_LOW,
+        None if bar is None else bar.limit, None if bar is None else bar.finite,
+    )
+
+
+def _text(
+    analysis: Analysis, other: list[str], figures: list[Path], out: Path, started: float
+) -> str:
     lines = [
         "fakeack reproduce: the paper's example (Sec. V)",
         f"  system {system_text(analysis.system)}; lam={PAPER_LAM}; energy ratio {PAPER_RATIO}",
@@ -55,6 +70,8 @@ def _text(analysis: Analysis, figures: list[Path], out: Path, started: float) ->
         *paragraph(j_online_note(analysis)),
         "",
         *decision_lines(analysis),
+        "",
+        *other,
     ]
     if figures:
         lines += paragraph(f"figures in {out}/: {', '.join(p.name for p in figures)}")
@@ -81,15 +98,20 @@ def run(args: argparse.Namespace) -> int:
     figures: list[Path] = []
     if not args.no_figures:
         figures = write_figures(analysis, out, paper_beta_bar=PAPER_BETA_BAR, stationary=STATIONARY_EXAMPLE)
+        figures += family_figure(
+            analysis.system, PAPER_LAM, PAPER_RATIO, PAPER_DELTA, PAPER_DELTA_LOW, out
+        )
+    other, other_json = _other_attacks(analysis)
     if args.json:
         document = {
             "command": "reproduce",
             **analysis_json(analysis),
             "paper": {**PAPER_PRINTED, "source": "Sec. V, 100000-run Monte Carlo (Model note 7)"},
             "notes": [j_online_note(analysis)],
+            "other_attacks": other_json,
             "figures": figures,
         }
         print(to_json(document))
         return 0
-    print(_text(analysis, figures, out, args.start))
+    print(_text(analysis, other, figures, out, args.start))
     return 0

@@ -1,0 +1,82 @@
+"""The "other attacks" block of ``fakeack reproduce`` and ``fakeack analyze``: independent
+blocking and forged flag-ACKs beside the paper's periodic attack."""
+
+from __future__ import annotations
+
+from fractions import Fraction
+from pathlib import Path
+from typing import Any
+
+from ..attack import j_attack
+from ..families import attack_families, other_attacks_table, plot_attack_families
+from ..other_attacks import beta_bar_random, high_power_rate
+from ..schedules import OnlineDesign
+from ..system import LinearSystem
+from ._figures import save_figure
+from ._report import format_number
+
+__all__ = ["attack_rows", "family_figure", "reproduce_lines"]
+
+
+def reproduce_lines(
+    system: LinearSystem, lam: float, ratio: Fraction, delta_hi: float, delta_lo: float,
+    beta_bar_limit: float | None, beta_bar_finite: Fraction | None,
+) -> tuple[list[str], dict[str, Any]]:
+    """The table of the paper's example under the other attacks (text lines and JSON)."""
+    rows, bar_random = other_attacks_table(system, lam, ratio, delta_hi, delta_lo)
+    psi = delta_lo + (delta_hi - delta_lo) * float(ratio)
+    lines = [
+        f"other attacks (beyond the paper; energy per step with Delta={delta_hi:g}, delta={delta_lo:g}, "
+        f"budget Psi={psi:.6f}):",
+        f"  {'attack':<44} {'J':>10} {'energy/step':>12}",
+        *(f"  {r.label:<44} {format_number(r.j):>10} {r.energy:>12.6f}" for r in rows),
+        f"  beta-bar against random blocking: {bar_random:.6f} (periodic: large period "
+        f"{format_number(beta_bar_limit)}, t<=60 {beta_bar_finite if beta_bar_finite else '-'})",
+    ]
+    document = {
+        "rows": [{"attack": r.label, "j": r.j, "energy_per_step": r.energy} for r in rows],
+        "beta_bar_random": bar_random,
+        "psi": psi,
+    }
+    return lines, document
+
+
+def attack_rows(
+    system: LinearSystem, lam: float, ratio: Fraction, online: OnlineDesign, attacks: tuple[Any, ...]
+) -> tuple[list[str], dict[str, Any]]:
+    """Rows for the config's ``[attack] random`` and ``inject`` (J and high-power rate)."""
+    if not attacks:
+        return [], {}
+    z0, mu = online
+    rate0 = high_power_rate(lam, z0, None, mu)
+    lines = [
+        "other attacks (exact; high-power rate = share of steps at high power, "
+        f"{rate0:.6f} without attack):",
+        f"  {'attack':<52} {'J':>10} {'high-power rate':>16}",
+    ]
+    rows = []
+    for att in attacks:
+        j = j_attack(system, lam, z0, mu=mu, attack=att)
+        rate = high_power_rate(lam, z0, att, mu)
+        lines.append(f"  {str(att):<52} {format_number(j):>10} {rate:>16.6f}")
+        rows.append({"attack": att.label, "j": j, "high_power_rate": rate})
+    bar = beta_bar_random(system, lam, ratio, z0, mu)
+    lines.append(f"  beta-bar against random blocking: {bar:.6f}")
+    return lines, {"rows": rows, "beta_bar_random": bar}
+
+
+def family_figure(
+    system: LinearSystem, lam: float, ratio: Fraction, delta_hi: float, delta_lo: float, out: Path
+) -> list[Path]:
+    """fig_attack_families (PNG + SVG): J and energy per step against beta for each family."""
+    from .. import plots
+
+    if not plots.have_matplotlib():
+        return []
+    import matplotlib.pyplot as plt
+
+    fig = plot_attack_families(attack_families(system, lam, ratio, delta_hi, delta_lo))
+    try:
+        return save_figure(fig, out, "fig_attack_families")
+    finally:
+        plt.close(fig)
