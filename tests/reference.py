@@ -113,44 +113,9 @@ def offline_direct(tr, lam, pattern, periods=60):
 
 
 def explore_mask_chain(lam, z0, mask, mu=1.0):
-    """Breadth-first exploration of the protocol's chain for any blocking mask and memory mix mu.
-
-    State (tau, zeros, sigma): holding time, zeros in the detector's memory since its last reset,
-    attacker counter. After a step without arrival the memory holds one more zero; with zeros = z0
-    the detector flags with probability mu, with zeros = z0 + 1 always. A flag counted sigma is
-    blocked iff mask[sigma % len(mask)]: a blocked flag resets the memory (the sensor stays on low
-    power); a delivered one makes the next step high power (the packet arrives). Returns (states,
-    dense row-stochastic T)."""
-    a, t = 1.0 - lam, len(mask)
-
-    def succ(state):
-        tau, z, sigma = state
-        flag = 1.0 if z == z0 + 1 else (mu if z == z0 else 0.0)
-        out = []
-        if flag > 0:
-            nxt = (sigma + 1) % t
-            if mask[sigma]:
-                out += [((0, 0, nxt), flag * lam), ((tau + 1, 1, nxt), flag * a)]
-            else:
-                out += [((0, 0, nxt), flag)]
-        if flag < 1:
-            out += [((0, 0, sigma), (1 - flag) * lam), ((tau + 1, z + 1, sigma), (1 - flag) * a)]
-        return [(s, p) for s, p in out if p > 0]
-
-    index = {(0, 0, 0): 0}
-    order = [(0, 0, 0)]
-    i = 0
-    while i < len(order):
-        for s, _ in succ(order[i]):
-            if s not in index:
-                index[s] = len(order)
-                order.append(s)
-        i += 1
-    T = np.zeros((len(order), len(order)))
-    for s, k in index.items():
-        for d, p in succ(s):
-            T[k, index[d]] += p
-    return order, T
+    """The (tau, zeros, sigma) chain for a periodic blocking mask and memory mix mu (no forging):
+    :func:`explore_any_chain` with the mask's 0/1 entries as blocking probabilities."""
+    return explore_any_chain(lam, z0, mu, [float(b) for b in mask], 0.0)
 
 
 def explore_any_chain(lam, z0, mu=1.0, block=(0.0,), gamma=0.0, tau_cap=None):

@@ -4,17 +4,17 @@ sensor in estimation error and in energy."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
 from typing import Any
 
 import numpy as np
 from scipy.optimize import brentq
 
 from . import _fakeack
-from ._validate import as_fraction, as_int, as_probability, as_ratio, as_real
+from ._validate import as_fraction, as_probability, as_real
 from .attacks import FlagInjection, RandomBlocking, as_attack, core_attack
-from .schedules import design_online
+from .schedules import _check_online as _online
 from .system import _core
+from .threshold import _problem
 
 __all__ = [
     "RandomSweep",
@@ -24,14 +24,6 @@ __all__ = [
     "random_blocking_sweep",
     "rate_matching_attack",
 ]
-
-
-def _online(lam: Any, z0: Any, mu: Any) -> tuple[float, int, float]:
-    return (
-        as_probability("lam", lam),
-        as_int("z0", z0, minimum=1),
-        as_probability("mu", mu, closed=True),
-    )
 
 
 def high_power_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
@@ -102,18 +94,6 @@ def energy_per_step(
     return lo + (hi - lo) * high_power_rate(lam, z0, attack, mu)
 
 
-def _design(lam: Any, ratio: Any, z0: Any, mu: Any) -> tuple[float, Fraction, int, float]:
-    lam_f, r = as_probability("lam", lam), as_ratio("ratio", ratio)
-    if z0 is None:
-        if mu is not None:
-            raise TypeError("mu: give z0 with mu (or neither, for fakeack.design_online's design)")
-        z, m = design_online(lam, r)
-    else:
-        z = as_int("z0", z0, minimum=1)
-        m = 1.0 if mu is None else as_probability("mu", mu, closed=True)
-    return lam_f, r, z, m
-
-
 def beta_bar_random(system: Any, lam: Any, ratio: Any, z0: Any = None, mu: Any = None) -> float:
     r"""The threshold against independent blocking: the root of
     :math:`J(\mathrm{RandomBlocking}(\beta)) = J_{\mathrm{off}}`.
@@ -139,8 +119,8 @@ def beta_bar_random(system: Any, lam: Any, ratio: Any, z0: Any = None, mu: Any =
         blocking every flag does not reach :math:`J_{\mathrm{off}}`.
     """
     core = _core(system)
-    lam_f, r, z, m = _design(lam, ratio, z0, mu)
-    return core.beta_bar_random(lam_f, r.numerator, r.denominator, z, m)
+    pb = _problem(lam, ratio, z0, mu)
+    return core.beta_bar_random(pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.z0, pb.mu)
 
 
 @dataclass(frozen=True)
