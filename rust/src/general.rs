@@ -62,7 +62,11 @@ pub fn capped_attack_chain(
     let block: Vec<f64> = match attack.genuine_blocking() {
         None => vec![0.0],
         Some(Attack::Random { beta }) => vec![*beta],
-        Some(b) => b.blocking_mask()?.iter().map(|&x| f64::from(u8::from(x))).collect(),
+        Some(b) => b
+            .blocking_mask()?
+            .iter()
+            .map(|&x| f64::from(u8::from(x)))
+            .collect(),
     };
     let endless = match attack.genuine_blocking() {
         Some(Attack::Random { beta }) => *beta > 0.0,
@@ -110,8 +114,14 @@ pub fn capped_attack_chain(
         }
         if flag < 1.0 {
             // No genuine flag: a forged one or an arrival restarts the walk.
-            out.push((state(0, 0, sigma), (1.0 - flag) * (gamma + (1.0 - gamma) * lam)));
-            out.push((state(tau + 1, z + 1, sigma), (1.0 - flag) * (1.0 - gamma) * a));
+            out.push((
+                state(0, 0, sigma),
+                (1.0 - flag) * (gamma + (1.0 - gamma) * lam),
+            ));
+            out.push((
+                state(tau + 1, z + 1, sigma),
+                (1.0 - flag) * (1.0 - gamma) * a,
+            ));
         }
         out
     };
@@ -232,9 +242,16 @@ mod tests {
         ] {
             let (states, csr) = capped_attack_chain(0.5, design, &attack, Some(300)).unwrap();
             let pi = gth(&csr).unwrap();
-            let j: f64 = states.iter().zip(&pi).map(|(s, p)| p * tr[s.tau as usize]).sum();
+            let j: f64 = states
+                .iter()
+                .zip(&pi)
+                .map(|(s, p)| p * tr[s.tau as usize])
+                .sum();
             let expect = sys.j_attack(0.5, design, &attack).unwrap();
-            assert!((j - expect).abs() < 1e-10 * expect, "{attack}: {j} vs {expect}");
+            assert!(
+                (j - expect).abs() < 1e-10 * expect,
+                "{attack}: {j} vs {expect}"
+            );
         }
         let endless = general_attack_chain(0.5, design, &Attack::random(0.4).unwrap());
         assert!(endless.unwrap_err().to_string().starts_with("attack:"));

@@ -299,7 +299,19 @@ fn segment_sums(v: &[f64], z0: u64, mu: f64, kmax: u64) -> Vec<f64> {
     let pre = prefix(v);
     let zsum = |s: usize, k: usize| {
         let first = if k == 0 { s } else { s + 1 };
-        pre[s + z + 1] - pre[first] + (1.0 - mu) * v[s + z + 1]
+        let tail = if mu < 1.0 {
+            (1.0 - mu) * v[s + z + 1]
+        } else {
+            0.0
+        };
+        let sum = pre[s + z + 1] - pre[first] + tail;
+        // The terms are non-negative and overflow only from some τ on (the traces grow
+        // geometrically), so inf - inf means a segment beyond the double range: +inf, not NaN.
+        if sum.is_nan() {
+            f64::INFINITY
+        } else {
+            sum
+        }
     };
     let mut out = Vec::with_capacity(kmax as usize + 1);
     if mu == 1.0 {
@@ -450,6 +462,28 @@ mod tests {
             let seg = Segments::new(&wtr(lam, 2000), lam, d, 600).unwrap();
             let total: f64 = seg.m.iter().sum();
             assert!((total - 1.0 / lam).abs() < 1e-10, "{mu}: {total}");
+        }
+    }
+
+    #[test]
+    fn overflowing_traces_give_inf_not_nan() {
+        // Weighted traces that overflow from τ = 3 on: every segment reaching them is +inf.
+        let w = vec![
+            1.0,
+            2.0,
+            4.0,
+            f64::INFINITY,
+            f64::INFINITY,
+            f64::INFINITY,
+            1.0,
+        ];
+        for mu in [1.0, 0.5] {
+            let seg = Segments::new(&w, 0.5, OnlineDesign::new(1, mu).unwrap(), 2).unwrap();
+            assert!(seg.w.iter().all(|x| !x.is_nan()), "{:?}", seg.w);
+            assert_eq!(seg.w[2], f64::INFINITY);
+            assert_eq!(seg.j_first_r(2, 3), f64::INFINITY);
+            // Segment 0 never reaches the overflow: J without attack stays finite.
+            assert!(seg.j_first_r(0, 3).is_finite());
         }
     }
 
