@@ -1,5 +1,13 @@
-use super::*;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
 use nalgebra::DMatrix;
+
+use super::driver::{simulate_with, Kernels};
+use super::kernel::{detect_isa, Isa};
+use super::plan::{longest_cyclic_run, max_tau, Plan};
+use super::*;
+use crate::error::{Error, Result};
+use crate::riccati::LinearSystem;
 
 mod per_run;
 mod perf;
