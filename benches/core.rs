@@ -31,7 +31,7 @@ use fakeack::chain::{self, AttackChain};
 use fakeack::montecarlo::{self, McConfig, McSchedule, Mode, Protocol};
 use fakeack::pattern::Segments;
 use fakeack::riccati::{spectral_radius, LinearSystem};
-use fakeack::{stationary, sweep};
+use fakeack::{stationary, sweep, Attack};
 
 /// The paper's example: A = 1.2, C = 0.7, Q = R = 0.8, λ = 0.5.
 const LAM: f64 = 0.5;
@@ -179,7 +179,7 @@ fn mc_config(mode: Mode, runs: u64, horizon: usize) -> McConfig {
     McConfig {
         lam: LAM,
         schedule: McSchedule::Online { z0: 2, mu: 1.0 },
-        attack: Some(vec![true, false, false, false, false]),
+        attack: Some(Attack::periodic(1, 5).expect("r < t")),
         mode,
         protocol: Protocol::B,
         horizon,

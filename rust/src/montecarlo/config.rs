@@ -1,5 +1,7 @@
 //! The public description of an experiment ([`McConfig`]) and of its outcome ([`McResult`]).
 
+use crate::attack::Attack;
+
 /// The sensor's power schedule.
 #[derive(Debug, Clone, PartialEq)]
 pub enum McSchedule {
@@ -43,9 +45,10 @@ pub struct McConfig {
     pub lam: f64,
     /// The sensor's power schedule.
     pub schedule: McSchedule,
-    /// Periodic blocking mask over the attacker's flag counter (online schedule only); "block the
-    /// first r of every t" is `[true; r] ++ [false; t-r]`. `None`: no attacker.
-    pub attack: Option<Vec<bool>>,
+    /// The attack on the flag-ACKs (online schedule only): [`Attack::Periodic`] blocks the first
+    /// r of every t, [`Attack::Mask`] any periodic mask over the attacker's flag counter (a mask
+    /// of all ones blocks every flag, and the runs estimate J_max). `None`: no attacker.
+    pub attack: Option<Attack>,
     /// Covariance (τ only) or state (Gaussian errors) fidelity.
     pub mode: Mode,
     /// How the flag-ACK travels (A and B give identical results for the same seed).

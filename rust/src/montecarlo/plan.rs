@@ -1,37 +1,21 @@
 //! The validated, precomputed experiment ([`Plan`]) shared by all blocks, and which kernel takes
 //! it.
 
+use std::borrow::Cow;
+
 use super::bitslice::{self, BsPlan};
 use super::config::{McConfig, McSchedule, Mode, Protocol};
 use super::kernel::Params;
 use super::state::StateModel;
 use super::{MAX_HORIZON, MAX_RECORDED_RUNS, SLICE_BITS};
+use crate::attack::{longest_cyclic_run, Attack};
 use crate::error::{check_lam, check_mu, Error, Result};
 use crate::riccati::LinearSystem;
 use crate::rng::bernoulli_threshold;
 
-/// Longest run of `true` in the cyclic sequence (`len` if all are true).
-pub(super) fn longest_cyclic_run(v: &[bool]) -> usize {
-    if v.iter().all(|&x| x) {
-        return v.len();
-    }
-    // Start right after a false so no run wraps around.
-    let start = v.iter().position(|&x| !x).unwrap_or(0) + 1;
-    let (mut best, mut cur) = (0, 0);
-    for i in 0..v.len() {
-        if v[(start + i) % v.len()] {
-            cur += 1;
-            best = best.max(cur);
-        } else {
-            cur = 0;
-        }
-    }
-    best
-}
-
-/// The largest holding time τ a run can reach (before capping by the horizon); `None` if
-/// unbounded (every flag blocked).
-pub(super) fn max_tau(schedule: &McSchedule, attack: Option<&[bool]>) -> Option<u64> {
+/// The largest holding time τ a run can reach (before capping by the horizon) under the
+/// blocking mask `mask`; `None` if unbounded (every flag blocked).
+pub(super) fn max_tau(schedule: &McSchedule, mask: Option<&[bool]>) -> Option<u64> {
     match schedule {
         McSchedule::Offline { pattern } => {
             let zeros: Vec<bool> = pattern.iter().map(|&g| g == 0).collect();
@@ -39,7 +23,7 @@ pub(super) fn max_tau(schedule: &McSchedule, attack: Option<&[bool]>) -> Option<
         }
         McSchedule::Online { z0, mu } => {
             let memory = if *mu < 1.0 { z0.saturating_add(1) } else { *z0 };
-            let blocked_in_a_row = match attack {
+            let blocked_in_a_row = match mask {
                 None => 0,
                 Some(mask) if mask.iter().all(|&b| b) => return None,
                 Some(mask) => longest_cyclic_run(mask) as u64,
@@ -47,6 +31,83 @@ pub(super) fn max_tau(schedule: &McSchedule, attack: Option<&[bool]>) -> Option<
             Some(memory.saturating_mul(blocked_in_a_row + 1))
         }
     }
+}
+
+/// The attack as a blocking mask over the attacker's flag counter (true = blocked), validated.
+/// A mask of all ones is accepted: every flag is blocked and the runs estimate J_max.
+///
+/// Every kind of [`Attack`] is matched by name, so a new kind (blocking each flag
+/// independently, forged flag-ACKs) fails to compile here until the Monte Carlo simulates it or
+/// refuses it with `Error::invalid("attack", "... not supported by the Monte Carlo yet")`.
+fn blocking_mask(attack: &Attack) -> Result<Cow<'_, [bool]>> {
+    match attack {
+        Attack::Periodic { .. } | Attack::Mask(_) => attack.blocking_mask(),
+    }
+}
+
+/// Packs a blocking mask into 64-bit words, flag-ACK i at bit i % 64 of word i / 64.
+fn pack_mask(mask: &[bool]) -> Vec<u64> {
+    let mut words = vec![0u64; mask.len().div_ceil(64)];
+    for (i, &b) in mask.iter().enumerate() {
+        words[i / 64] |= u64::from(b) << (i % 64);
+    }
+    words
+}
+
+/// Checks λ and the experiment's size: the horizon, the number of runs and, when recording,
+/// that the per-run record fits.
+fn check_size(cfg: &McConfig) -> Result<()> {
+    check_lam(cfg.lam)?;
+    if cfg.horizon == 0 {
+        return Err(Error::invalid("horizon", "must be at least 1"));
+    }
+    if cfg.horizon > MAX_HORIZON {
+        return Err(Error::TooLarge {
+            arg: "horizon".into(),
+            requested: cfg.horizon as u128,
+            limit: MAX_HORIZON as u128,
+        });
+    }
+    if cfg.runs == 0 {
+        return Err(Error::invalid("runs", "must be at least 1"));
+    }
+    if cfg.record_runs && cfg.runs > MAX_RECORDED_RUNS {
+        return Err(Error::TooLarge {
+            arg: "runs".into(),
+            requested: u128::from(cfg.runs),
+            limit: u128::from(MAX_RECORDED_RUNS),
+        });
+    }
+    Ok(())
+}
+
+/// Checks an offline pattern: non-empty, of zeros and ones, starting with a one.
+fn check_pattern(pattern: &[u8]) -> Result<()> {
+    if pattern.is_empty() {
+        return Err(Error::invalid("pattern", "must not be empty"));
+    }
+    if let Some(g) = pattern.iter().find(|&&g| g > 1) {
+        return Err(Error::invalid(
+            "pattern",
+            format!("entries must be 0 or 1, found {g}"),
+        ));
+    }
+    if pattern[0] != 1 {
+        return Err(Error::invalid(
+            "pattern",
+            "must start with 1 (the sensor uses high power at k = 1)",
+        ));
+    }
+    Ok(())
+}
+
+/// tr[τ] = Tr h^τ(P̄) for τ = 0..=bound, refused if any is NaN.
+fn trace_table(sys: &LinearSystem, bound: u64) -> Result<Vec<f64>> {
+    let tr = sys.h_traces(bound as usize);
+    if tr.len() != bound as usize + 1 || tr.iter().any(|t| t.is_nan()) {
+        return Err(Error::invalid("sys", "Tr h^i(P̄) is not a number"));
+    }
+    Ok(tr)
 }
 
 /// The validated, precomputed experiment shared by all blocks.
@@ -80,29 +141,38 @@ pub(super) struct Plan {
 }
 
 impl Plan {
+    /// Validates `cfg` (errors name the offending argument) and precomputes what the kernels
+    /// need.
     pub(super) fn new(sys: &LinearSystem, cfg: &McConfig) -> Result<Self> {
-        check_lam(cfg.lam)?;
-        if cfg.horizon == 0 {
-            return Err(Error::invalid("horizon", "must be at least 1"));
+        check_size(cfg)?;
+        let mut plan = Plan::unscheduled(cfg);
+        let mask = match &cfg.schedule {
+            McSchedule::Offline { pattern } => {
+                plan.schedule_offline(pattern, cfg)?;
+                None
+            }
+            McSchedule::Online { z0, mu } => {
+                plan.schedule_online(*z0, *mu)?;
+                cfg.attack.as_ref().map(blocking_mask).transpose()?
+            }
+        };
+        if let Some(mask) = &mask {
+            plan.mask = Some(pack_mask(mask));
+            plan.mask_len = mask.len() as u64;
         }
-        if cfg.horizon > MAX_HORIZON {
-            return Err(Error::TooLarge {
-                arg: "horizon".into(),
-                requested: cfg.horizon as u128,
-                limit: MAX_HORIZON as u128,
-            });
+        let reach = max_tau(&cfg.schedule, mask.as_deref()).unwrap_or(u64::MAX);
+        plan.bound = reach.min(cfg.horizon as u64);
+        match cfg.mode {
+            Mode::Covariance => plan.tr = trace_table(sys, plan.bound)?,
+            Mode::State => plan.state = Some(StateModel::new(sys)?),
         }
-        if cfg.runs == 0 {
-            return Err(Error::invalid("runs", "must be at least 1"));
-        }
-        if cfg.record_runs && cfg.runs > MAX_RECORDED_RUNS {
-            return Err(Error::TooLarge {
-                arg: "runs".into(),
-                requested: u128::from(cfg.runs),
-                limit: u128::from(MAX_RECORDED_RUNS),
-            });
-        }
-        let mut plan = Plan {
+        plan.bitslice = plan.bitslice_plan(mask.as_deref());
+        Ok(plan)
+    }
+
+    /// The plan of `cfg` before its schedule, attack, τ bound and tables are filled in.
+    fn unscheduled(cfg: &McConfig) -> Self {
+        Plan {
             horizon: cfg.horizon,
             runs: cfg.runs,
             seed: cfg.seed,
@@ -122,98 +192,58 @@ impl Plan {
             tr: Vec::new(),
             state: None,
             bitslice: None,
-        };
-        match &cfg.schedule {
-            McSchedule::Offline { pattern } => {
-                if pattern.is_empty() {
-                    return Err(Error::invalid("pattern", "must not be empty"));
-                }
-                if let Some(g) = pattern.iter().find(|&&g| g > 1) {
-                    return Err(Error::invalid(
-                        "pattern",
-                        format!("entries must be 0 or 1, found {g}"),
-                    ));
-                }
-                if pattern[0] != 1 {
-                    return Err(Error::invalid(
-                        "pattern",
-                        "must start with 1 (the sensor uses high power at k = 1)",
-                    ));
-                }
-                if cfg.attack.is_some() {
-                    return Err(Error::invalid(
-                        "attack",
-                        "applies to the online schedule only (the offline schedule sends no flag-ACK)",
-                    ));
-                }
-                let len = pattern.len();
-                let ones: u64 = pattern.iter().map(|&g| u64::from(g)).sum();
-                let (full, rest) = (cfg.horizon / len, cfg.horizon % len);
-                let head: u64 = pattern[..rest].iter().map(|&g| u64::from(g)).sum();
-                plan.offline_high = full as u64 * ones + head;
-                plan.pattern = pattern.clone();
-            }
-            McSchedule::Online { z0, mu } => {
-                if *z0 < 1 {
-                    return Err(Error::invalid(
-                        "z0",
-                        format!("must be at least 1, got {z0}"),
-                    ));
-                }
-                check_mu(*mu)?;
-                plan.online = true;
-                plan.z0 = *z0;
-                // μ = 1 and μ = 0 are deterministic memory lengths: no draw.
-                plan.mu_draw = *mu > 0.0 && *mu < 1.0;
-                plan.mu_thr = bernoulli_threshold(*mu);
-                plan.l_fixed = if *mu >= 1.0 {
-                    *z0
-                } else {
-                    z0.saturating_add(1)
-                };
-                if let Some(mask) = &cfg.attack {
-                    if mask.is_empty() {
-                        return Err(Error::invalid(
-                            "attack",
-                            "the blocking mask must not be empty",
-                        ));
-                    }
-                    let mut words = vec![0u64; mask.len().div_ceil(64)];
-                    for (i, &b) in mask.iter().enumerate() {
-                        words[i / 64] |= u64::from(b) << (i % 64);
-                    }
-                    plan.mask = Some(words);
-                    plan.mask_len = mask.len() as u64;
-                }
-            }
         }
-        let reach = max_tau(&cfg.schedule, cfg.attack.as_deref()).unwrap_or(u64::MAX);
-        plan.bound = reach.min(cfg.horizon as u64);
-        match cfg.mode {
-            Mode::Covariance => {
-                plan.tr = sys.h_traces(plan.bound as usize);
-                if plan.tr.len() != plan.bound as usize + 1 || plan.tr.iter().any(|t| t.is_nan()) {
-                    return Err(Error::invalid("sys", "Tr h^i(P̄) is not a number"));
-                }
-            }
-            Mode::State => plan.state = Some(StateModel::new(sys)?),
+    }
+
+    /// Checks and records the offline schedule `pattern` (which sends no flag-ACK, so `cfg`
+    /// must have no attack).
+    fn schedule_offline(&mut self, pattern: &[u8], cfg: &McConfig) -> Result<()> {
+        check_pattern(pattern)?;
+        if cfg.attack.is_some() {
+            return Err(Error::invalid(
+                "attack",
+                "applies to the online schedule only (the offline schedule sends no flag-ACK)",
+            ));
         }
-        plan.bitslice = plan.bitslice_plan(cfg.attack.as_deref());
-        Ok(plan)
+        let len = pattern.len();
+        let ones: u64 = pattern.iter().map(|&g| u64::from(g)).sum();
+        let (full, rest) = (cfg.horizon / len, cfg.horizon % len);
+        let head: u64 = pattern[..rest].iter().map(|&g| u64::from(g)).sum();
+        self.offline_high = full as u64 * ones + head;
+        self.pattern = pattern.to_vec();
+        Ok(())
+    }
+
+    /// Checks and records the online schedule: z0-bit memory with probability μ, else z0+1.
+    fn schedule_online(&mut self, z0: u64, mu: f64) -> Result<()> {
+        if z0 < 1 {
+            return Err(Error::invalid(
+                "z0",
+                format!("must be at least 1, got {z0}"),
+            ));
+        }
+        check_mu(mu)?;
+        self.online = true;
+        self.z0 = z0;
+        // μ = 1 and μ = 0 are deterministic memory lengths: no draw.
+        self.mu_draw = mu > 0.0 && mu < 1.0;
+        self.mu_thr = bernoulli_threshold(mu);
+        self.l_fixed = if mu >= 1.0 { z0 } else { z0.saturating_add(1) };
+        Ok(())
     }
 
     /// The bit-sliced kernel's plan if this experiment fits it.
-    fn bitslice_plan(&self, attack: Option<&[bool]>) -> Option<BsPlan> {
+    fn bitslice_plan(&self, mask: Option<&[bool]>) -> Option<BsPlan> {
         let depth = self.bound as usize;
         let memory = if self.mu_draw {
             self.z0.saturating_add(1)
         } else {
             self.l_fixed
         };
-        let mask_runs = attack.map(bitslice::mask_runs).unwrap_or_default();
+        let mask_runs = mask.map(bitslice::mask_runs).unwrap_or_default();
         let fits = self.state.is_none()
             && depth <= bitslice::MAX_DEPTH
-            && (attack.is_none() || memory <= bitslice::MAX_DEPTH as u64)
+            && (mask.is_none() || memory <= bitslice::MAX_DEPTH as u64)
             && mask_runs.len() <= bitslice::MAX_MASK_RUNS;
         fits.then(|| BsPlan {
             lam_thr: self.lam_thr,

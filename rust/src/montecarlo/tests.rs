@@ -4,8 +4,9 @@ use nalgebra::DMatrix;
 
 use super::driver::{simulate_with, Kernels};
 use super::kernel::{detect_isa, Isa};
-use super::plan::{longest_cyclic_run, max_tau, Plan};
+use super::plan::{max_tau, Plan};
 use super::*;
+use crate::attack::Attack;
 use crate::error::{Error, Result};
 use crate::riccati::LinearSystem;
 
@@ -17,11 +18,12 @@ fn scalar_sys() -> LinearSystem {
     LinearSystem::new(m(1.2), m(0.7), m(0.8), m(0.8)).unwrap()
 }
 
-fn online(lam: f64, z0: u64, mu: f64, attack: Option<Vec<bool>>) -> McConfig {
+/// An online experiment, attacked by the blocking mask `mask` if given.
+fn online(lam: f64, z0: u64, mu: f64, mask: Option<Vec<bool>>) -> McConfig {
     McConfig {
         lam,
         schedule: McSchedule::Online { z0, mu },
-        attack,
+        attack: mask.map(Attack::Mask),
         mode: Mode::Covariance,
         protocol: Protocol::B,
         horizon: 1000,
@@ -493,13 +495,20 @@ fn bad_inputs_are_named() {
         (online(0.5, 2, 1.5, None), "mu"),
         (online(0.5, 2, f64::NAN, None), "mu"),
         (online(0.5, 0, 1.0, None), "z0"),
-        (online(0.5, 2, 1.0, Some(vec![])), "attack"),
+        (online(0.5, 2, 1.0, Some(vec![])), "mask"),
+        (
+            McConfig {
+                attack: Some(Attack::Periodic { r: 3, t: 3 }),
+                ..base.clone()
+            },
+            "r",
+        ),
         (off(vec![]), "pattern"),
         (off(vec![0, 1]), "pattern"),
         (off(vec![1, 2]), "pattern"),
         (
             McConfig {
-                attack: Some(vec![true]),
+                attack: Some(Attack::Mask(vec![true])),
                 ..off(vec![1, 0])
             },
             "attack",
@@ -594,10 +603,6 @@ fn edge_cases() {
 
 #[test]
 fn reachable_tau() {
-    assert_eq!(longest_cyclic_run(&[true, false, true, true]), 3);
-    assert_eq!(longest_cyclic_run(&[false, true, true, false]), 2);
-    assert_eq!(longest_cyclic_run(&[false]), 0);
-    assert_eq!(longest_cyclic_run(&[true, true]), 2);
     let off = McSchedule::Offline {
         pattern: vec![1, 0, 1, 0, 0, 0],
     };
@@ -608,6 +613,33 @@ fn reachable_tau() {
     assert_eq!(max_tau(&on(1.0), Some(&[true, false, false])), Some(4));
     assert_eq!(max_tau(&on(0.0), Some(&[true, false, true])), Some(9));
     assert_eq!(max_tau(&on(1.0), Some(&[true, true])), None);
+}
+
+/// An attack given as (r, t) is the mask 1^r 0^(t-r): the same experiment, draw for draw, on
+/// every kernel family and in both modes.
+#[test]
+fn periodic_attack_is_its_mask() {
+    let sys = scalar_sys();
+    for mode in [Mode::Covariance, Mode::State] {
+        let mask = McConfig {
+            mode,
+            horizon: 500,
+            runs: BLOCK_RUNS + 9,
+            seed: 91,
+            ..online(0.45, 2, 0.4, Some(vec![true, true, false, false, false]))
+        };
+        let periodic = McConfig {
+            attack: Some(Attack::periodic(2, 5).unwrap()),
+            ..mask.clone()
+        };
+        for ((kernel, rm), (_, rp)) in run_both(&sys, &mask)
+            .into_iter()
+            .zip(run_both(&sys, &periodic))
+        {
+            assert_eq!(rm, rp, "{mode:?}, {kernel}");
+            assert!(rp.flags_blocked > 0.0);
+        }
+    }
 }
 
 /// Plans the bit-sliced kernel does not take run on the lane kernels, through the same entry.
