@@ -34,6 +34,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use super::KernelFlags;
 use crate::error::{Error, Result};
 
 mod words;
@@ -59,7 +60,7 @@ pub(super) struct BsPlan {
     pub(super) mu_thr: u64,
     pub(super) z0: usize,
     /// Memory length when there is no μ draw.
-    pub(super) l_fixed: usize,
+    pub(super) fixed_memory: usize,
     /// Offline pattern (1 = high power); unused online.
     pub(super) pattern: Vec<u8>,
     /// Runs of ones of the blocking mask, as half-open intervals of the counter.
@@ -76,7 +77,11 @@ impl BsPlan {
 
     /// Thermometer levels needed: τ up to the depth, and the zero count up to the memory.
     fn levels(&self, mu_draw: bool, attack: bool) -> usize {
-        let memory = if mu_draw { self.z0 + 1 } else { self.l_fixed };
+        let memory = if mu_draw {
+            self.z0 + 1
+        } else {
+            self.fixed_memory
+        };
         self.depth().max(if attack { memory } else { 0 }).max(1)
     }
 
@@ -169,7 +174,7 @@ fn body<
     let tr: [f64; MAX_DEPTH + 1] = std::array::from_fn(|j| p.tr.get(j).copied().unwrap_or(0.0));
     // Selectors of the memory lengths: level L - 1 holds "≥ L".
     let sel = |len: usize| -> [bool; D] { std::array::from_fn(|j| j + 1 == len) };
-    let (sel_fixed, sel_short, sel_long) = (sel(p.l_fixed), sel(p.z0), sel(p.z0 + 1));
+    let (sel_fixed, sel_short, sel_long) = (sel(p.fixed_memory), sel(p.z0), sel(p.z0 + 1));
     let mut rng = Rng4::for_block(b.seed, b.block);
     let mut therm = [ZERO; D];
     let mut zeros = [ZERO; D];
@@ -376,14 +381,14 @@ macro_rules! avx2_by_depth {
 /// and the CPU has it.
 pub(super) fn run_block(
     p: &BsPlan,
-    flags: (bool, bool, bool, bool),
+    flags: KernelFlags,
     avx2: bool,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
     #[cfg(target_arch = "x86_64")]
     if avx2 && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("popcnt") {
-        let levels = p.levels(flags.1, flags.2);
+        let levels = p.levels(flags.mu_draw, flags.attack);
         // Counter planes: none without an attacker, 4 for masks up to 15 long, else 64.
         let wide = p.counter_bits() > 4;
         // Only attacked kernels have counter planes: monomorphise B = 4 and 64 for those alone.

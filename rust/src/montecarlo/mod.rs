@@ -72,11 +72,32 @@
 //! in `kernel/lanes4.rs` and `kernel/lanes4_avx2.rs`); `state` the state-mode model and kernel;
 //! `tests` the unit tests (`tests/perf.rs`: the ignored throughput and memory checks).
 
+/// Which protocol paths an experiment's kernel needs; each kernel is compiled once per
+/// combination (const generics), and [`by_flags!`] picks the one matching these run-time values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct KernelFlags {
+    /// The online schedule (a detector sends flag-ACKs); else the offline pattern.
+    online: bool,
+    /// A μ draw every step (0 < μ < 1); else the memory length is fixed.
+    mu_draw: bool,
+    /// An attacker on the flag-ACKs.
+    attack: bool,
+    /// Protocol A (a bit every step) rather than B (a packet when a flag is due).
+    protocol_a: bool,
+}
+
 /// Calls `$go!(ONLINE, MU_DRAW, ATTACK, PROTO_A)` with the const-generic kernel flags matching
-/// the run-time tuple `$flags` (an offline plan has no detector, an unattacked one no channel).
+/// the run-time [`KernelFlags`] `$flags` (an offline plan has no detector, an unattacked one no
+/// channel, so those combinations share one kernel).
 macro_rules! by_flags {
-    ($flags:expr, $go:ident) => {
-        match $flags {
+    ($flags:expr, $go:ident) => {{
+        let $crate::montecarlo::KernelFlags {
+            online,
+            mu_draw,
+            attack,
+            protocol_a,
+        } = $flags;
+        match (online, mu_draw, attack, protocol_a) {
             (false, _, _, _) => $go!(false, false, false, false),
             (true, false, false, _) => $go!(true, false, false, false),
             (true, true, false, _) => $go!(true, true, false, false),
@@ -85,7 +106,7 @@ macro_rules! by_flags {
             (true, true, true, false) => $go!(true, true, true, false),
             (true, true, true, true) => $go!(true, true, true, true),
         }
-    };
+    }};
 }
 
 mod bitslice;

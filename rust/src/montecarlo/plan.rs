@@ -5,9 +5,9 @@ use std::borrow::Cow;
 
 use super::bitslice::{self, BsPlan};
 use super::config::{McConfig, McSchedule, Mode, Protocol};
-use super::kernel::Params;
+use super::kernel::{Params, SlicedThreshold};
 use super::state::StateModel;
-use super::{MAX_HORIZON, MAX_RECORDED_RUNS, SLICE_BITS};
+use super::{KernelFlags, MAX_HORIZON, MAX_RECORDED_RUNS};
 use crate::attack::{longest_cyclic_run, Attack};
 use crate::error::{check_lam, check_mu, Error, Result};
 use crate::riccati::LinearSystem;
@@ -123,7 +123,7 @@ pub(super) struct Plan {
     pub(super) mu_thr: u64,
     z0: u64,
     /// Memory length when there is no draw: z0 for μ = 1, z0+1 for μ = 0.
-    pub(super) l_fixed: u64,
+    pub(super) fixed_memory: u64,
     pub(super) pattern: Vec<u8>,
     /// Ones among the first `horizon` steps of the offline pattern.
     pub(super) offline_high: u64,
@@ -182,7 +182,7 @@ impl Plan {
             mu_draw: false,
             mu_thr: 0,
             z0: 0,
-            l_fixed: 0,
+            fixed_memory: 0,
             pattern: Vec::new(),
             offline_high: 0,
             mask: None,
@@ -228,7 +228,7 @@ impl Plan {
         // μ = 1 and μ = 0 are deterministic memory lengths: no draw.
         self.mu_draw = mu > 0.0 && mu < 1.0;
         self.mu_thr = bernoulli_threshold(mu);
-        self.l_fixed = if mu >= 1.0 { z0 } else { z0.saturating_add(1) };
+        self.fixed_memory = if mu >= 1.0 { z0 } else { z0.saturating_add(1) };
         Ok(())
     }
 
@@ -238,7 +238,7 @@ impl Plan {
         let memory = if self.mu_draw {
             self.z0.saturating_add(1)
         } else {
-            self.l_fixed
+            self.fixed_memory
         };
         let mask_runs = mask.map(bitslice::mask_runs).unwrap_or_default();
         let fits = self.state.is_none()
@@ -250,7 +250,7 @@ impl Plan {
             mu_thr: self.mu_thr,
             // Memory lengths beyond the depth never trigger (τ <= depth); clamp them.
             z0: self.z0.min(depth as u64 + 1) as usize,
-            l_fixed: self.l_fixed.min(depth as u64 + 1) as usize,
+            fixed_memory: self.fixed_memory.min(depth as u64 + 1) as usize,
             pattern: self.pattern.clone(),
             mask_runs,
             mask_len: self.mask_len,
@@ -258,29 +258,27 @@ impl Plan {
         })
     }
 
-    /// The kernels' const-generic flags: (online, μ draw, attack, protocol A).
-    pub(super) fn flags(&self) -> (bool, bool, bool, bool) {
-        (
-            self.online,
-            self.mu_draw,
-            self.mask.is_some(),
-            self.protocol == Protocol::A,
-        )
+    /// The protocol paths the kernels need.
+    pub(super) fn flags(&self) -> KernelFlags {
+        KernelFlags {
+            online: self.online,
+            mu_draw: self.mu_draw,
+            attack: self.mask.is_some(),
+            protocol_a: self.protocol == Protocol::A,
+        }
     }
 
+    /// The lane kernels' constants.
     pub(super) fn params(&self) -> Params<'_> {
-        let low = 64 - SLICE_BITS;
         let cap = self.horizon as u64 + 1;
         Params {
-            lam_hi: self.lam_thr >> low,
-            lam_lo: self.lam_thr & ((1u64 << low) - 1),
-            mu_hi: self.mu_thr >> low,
-            mu_lo: self.mu_thr & ((1u64 << low) - 1),
+            lam: SlicedThreshold::new(self.lam_thr),
+            mu: SlicedThreshold::new(self.mu_thr),
             // Zero counts never exceed the horizon, so memory lengths beyond it are all alike;
             // the clamp keeps every lane value below 2^63 (signed vector compares are exact).
             z0: self.z0.min(cap),
-            z0p1: self.z0.min(cap) + 1,
-            l_fixed: self.l_fixed.min(cap),
+            long_memory: self.z0.min(cap) + 1,
+            fixed_memory: self.fixed_memory.min(cap),
             mask: self.mask.as_deref().unwrap_or(&[0]),
             mask_len: self.mask_len,
             pattern: if self.pattern.is_empty() {
@@ -288,7 +286,7 @@ impl Plan {
             } else {
                 &self.pattern
             },
-            last: self.bound,
+            max_tau: self.bound,
         }
     }
 }

@@ -6,7 +6,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use nalgebra::DMatrix;
 
 use super::kernel::{
-    check_tables, group_rows, lane_sum, Isa, Params, Proto, Tile, TileOut, SUB_STEPS,
+    group_rows, lane_sum, Isa, KernelTables, Params, Proto, Tile, TileOut, SUB_STEPS,
 };
 use super::{CHUNK_STEPS, LANES};
 use crate::error::{Error, Result};
@@ -180,8 +180,10 @@ pub(super) fn state_tile_impl<
     let mut sum = [0.0f64; LANES];
     // The protocol runs ahead on the grouped covariance kernels, SUB_STEPS steps at a time; the
     // marker table [1, 0, 0, ...] turns their rows into arrival indicators.
-    let marker: Vec<f64> = (0..=p.last).map(|t| f64::from(u8::from(t == 0))).collect();
-    check_tables(p, &marker)?;
+    let marker: Vec<f64> = (0..=p.max_tau)
+        .map(|t| f64::from(u8::from(t == 0)))
+        .collect();
+    let tables = KernelTables::new(p, &marker)?;
     let everyone = [u64::MAX; LANES];
     let mut rows = [[0.0f64; LANES]; SUB_STEPS];
     let mut ignored = [0.0f64; LANES];
@@ -197,8 +199,7 @@ pub(super) fn state_tile_impl<
             let rows = &mut rows[..sub.len()];
             group_rows::<ONLINE, MU_DRAW, ATTACK, PROTO_A>(
                 isa,
-                p,
-                &marker,
+                &tables,
                 &mut proto,
                 &mut ignored,
                 side,
@@ -262,10 +263,5 @@ pub(super) fn state_tile_impl<
             }
         }
     }
-    Ok(TileOut {
-        sum,
-        sent: proto.sent,
-        blocked: proto.blocked,
-        hi_last: proto.hi,
-    })
+    Ok(proto.finish(sum))
 }

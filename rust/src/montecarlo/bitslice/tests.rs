@@ -165,18 +165,14 @@ fn histogram_sum(tr: &[f64], counts: &[u64]) -> f64 {
 }
 
 /// The protocol with one integer state per lane, fed by the same Bernoulli words.
-#[allow(clippy::too_many_arguments)]
-fn plain(
-    p: &BsPlan,
-    online: bool,
-    mu_draw: bool,
-    mask: Option<&[bool]>,
-    proto_a: bool,
-    horizon: usize,
-    active: usize,
-    seed: u64,
-    block: u64,
-) -> Plain {
+fn plain(case: &Case, horizon: usize, active: usize, seed: u64, block: u64) -> Plain {
+    let (p, mask) = (&case.plan, case.mask);
+    let KernelFlags {
+        online,
+        mu_draw,
+        protocol_a,
+        ..
+    } = case.flags;
     let depth = p.depth();
     let mut rng = Rng4::for_block(seed, block);
     let mut tau = vec![0usize; RUNS];
@@ -237,7 +233,7 @@ fn plain(
                 let memory = match (mu_draw, lane(&short, l)) {
                     (true, true) => p.z0,
                     (true, false) => p.z0 + 1,
-                    (false, _) => p.l_fixed,
+                    (false, _) => p.fixed_memory,
                 };
                 let counted = u64::from(l < active);
                 let flag = count[l] >= memory;
@@ -252,7 +248,7 @@ fn plain(
                         attacked
                     }
                 };
-                hi[l] = if proto_a {
+                hi[l] = if protocol_a {
                     flag ^ attacked
                 } else {
                     flag && !attacked
@@ -277,7 +273,7 @@ fn plan(
     lam: f64,
     mu: f64,
     z0: usize,
-    l_fixed: usize,
+    fixed_memory: usize,
     pattern: Vec<u8>,
     mask: Option<&[bool]>,
     depth: usize,
@@ -286,7 +282,7 @@ fn plan(
         lam_thr: crate::rng::bernoulli_threshold(lam),
         mu_thr: crate::rng::bernoulli_threshold(mu),
         z0,
-        l_fixed,
+        fixed_memory,
         pattern,
         mask_runs: mask.map(mask_runs).unwrap_or_default(),
         mask_len: mask.map_or(1, |m| m.len() as u64),
@@ -297,8 +293,44 @@ fn plan(
     }
 }
 
-/// (plan, online, μ draw, mask, protocol A)
-type Case<'a> = (BsPlan, bool, bool, Option<&'a [bool]>, bool);
+/// One experiment of the comparison: the plan, its protocol paths and its blocking mask.
+struct Case<'a> {
+    plan: BsPlan,
+    flags: KernelFlags,
+    mask: Option<&'a [bool]>,
+}
+
+impl<'a> Case<'a> {
+    fn offline(plan: BsPlan) -> Self {
+        let flags = KernelFlags {
+            online: false,
+            mu_draw: false,
+            attack: false,
+            protocol_a: false,
+        };
+        Case {
+            plan,
+            flags,
+            mask: None,
+        }
+    }
+
+    /// Online, under protocol B (attacked if `mask` is given).
+    fn online(plan: BsPlan, mu_draw: bool, mask: Option<&'a [bool]>) -> Self {
+        let flags = KernelFlags {
+            online: true,
+            mu_draw,
+            attack: mask.is_some(),
+            protocol_a: false,
+        };
+        Case { plan, flags, mask }
+    }
+
+    fn protocol_a(mut self) -> Self {
+        self.flags.protocol_a = true;
+        self
+    }
+}
 
 #[test]
 fn matches_plain_per_lane_simulation() {
@@ -311,97 +343,61 @@ fn matches_plain_per_lane_simulation() {
     let mut long_gap = vec![0u8; 21];
     long_gap[0] = 1;
     let cases: Vec<Case> = vec![
-        (
-            plan(0.45, 1.0, 2, 2, vec![1], None, 2),
-            true,
-            false,
-            None,
-            false,
-        ),
-        (
-            plan(0.3, 0.4, 2, 3, vec![1], None, 3),
-            true,
-            true,
-            None,
-            false,
-        ),
-        (
+        Case::online(plan(0.45, 1.0, 2, 2, vec![1], None, 2), false, None),
+        Case::online(plan(0.3, 0.4, 2, 3, vec![1], None, 3), true, None),
+        Case::online(
             plan(0.45, 1.0, 2, 2, vec![1], Some(&mask_a), 6),
-            true,
             false,
             Some(&mask_a),
-            false,
         ),
-        (
+        Case::online(
             plan(0.45, 1.0, 2, 2, vec![1], Some(&mask_a), 6),
-            true,
             false,
             Some(&mask_a),
-            true,
-        ),
-        (
+        )
+        .protocol_a(),
+        Case::online(
             plan(0.35, 0.4, 2, 3, vec![1], Some(&mask_b), 12),
             true,
-            true,
             Some(&mask_b),
-            false,
         ),
-        (
+        Case::online(
             plan(0.35, 0.6, 1, 2, vec![1], Some(&mask_b), 8),
             true,
-            true,
             Some(&mask_b),
-            true,
-        ),
-        (
-            plan(0.5, 1.0, 1, 1, vec![1, 0, 0, 1, 0, 0, 0], None, 3),
-            false,
-            false,
+        )
+        .protocol_a(),
+        Case::offline(plan(0.5, 1.0, 1, 1, vec![1, 0, 0, 1, 0, 0, 0], None, 3)),
+        Case::offline(plan(
+            0.2,
+            1.0,
+            1,
+            1,
+            vec![1, 0, 0, 0, 0, 0, 0, 0, 0],
             None,
-            false,
-        ),
-        (
-            plan(0.2, 1.0, 1, 1, vec![1, 0, 0, 0, 0, 0, 0, 0, 0], None, 8),
-            false,
-            false,
-            None,
-            false,
-        ),
-        (
+            8,
+        )),
+        Case::online(
             plan(0.4, 1.0, 3, 3, vec![1], Some(&mask_c), 9),
-            true,
             false,
             Some(&mask_c),
-            false,
         ),
-        (
+        Case::online(
             plan(0.3, 0.5, 3, 4, vec![1], Some(&mask_c), 12),
             true,
-            true,
             Some(&mask_c),
-            true,
-        ),
-        (
-            plan(0.15, 1.0, 1, 1, long_gap.clone(), None, 20),
-            false,
-            false,
-            None,
-            false,
-        ),
+        )
+        .protocol_a(),
+        Case::offline(plan(0.15, 1.0, 1, 1, long_gap.clone(), None, 20)),
         // A depth below the reachable τ bound (a short horizon caps it) and an all-ones pattern.
-        (
-            plan(0.5, 1.0, 1, 1, vec![1], None, 0),
-            false,
-            false,
-            None,
-            false,
-        ),
+        Case::offline(plan(0.5, 1.0, 1, 1, vec![1], None, 0)),
     ];
-    for (i, (p, online, mu_draw, mask, proto_a)) in cases.iter().enumerate() {
+    for (i, case) in cases.iter().enumerate() {
+        let p = &case.plan;
         for (horizon, active, record) in [(333usize, RUNS, true), (40, 77, true), (17, 200, false)]
         {
             let mut acc = vec![0.0; horizon];
-            let flags = (*online, *mu_draw, mask.is_some(), *proto_a);
+            let flags = case.flags;
             let mut b = BsBlock {
                 seed: 3,
                 block: i as u64,
@@ -410,9 +406,7 @@ fn matches_plain_per_lane_simulation() {
                 acc: &mut acc,
             };
             let got = run_block(p, flags, false, &mut b, &AtomicBool::new(false)).unwrap();
-            let want = plain(
-                p, *online, *mu_draw, *mask, *proto_a, horizon, active, 3, i as u64,
-            );
+            let want = plain(case, horizon, active, 3, i as u64);
             assert_eq!(acc, want.acc, "case {i} horizon {horizon}");
             assert_eq!(got.sum, want.sum, "case {i}");
             assert_eq!(

@@ -1,4 +1,7 @@
-use super::{resolve_ties4, Proto, Xoshiro256pp, SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
+use super::grouped::resolve_ties4;
+use super::Proto;
+use crate::montecarlo::{SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
+use crate::rng::Xoshiro256pp;
 
 pub(super) type U = [u64; 4];
 pub(super) type F = [f64; 4];
@@ -122,13 +125,13 @@ pub(super) fn lookup(t: &Table, idx: U) -> F {
 /// Four xoshiro256++ lanes and their current word of 16-bit slices.
 pub(super) struct Stream {
     s: [U; 4],
-    bits: U,
-    avail: u32,
+    slice_word: U,
+    slices_left: u32,
 }
 
 impl Stream {
     #[inline(always)]
-    pub(super) fn load(p: &Proto, lo: usize, avail: u32) -> Self {
+    pub(super) fn load(p: &Proto, lo: usize, slices_left: u32) -> Self {
         Stream {
             s: [
                 load(&p.s0[lo..]),
@@ -136,8 +139,8 @@ impl Stream {
                 load(&p.s2[lo..]),
                 load(&p.s3[lo..]),
             ],
-            bits: load(&p.bits[lo..]),
-            avail,
+            slice_word: load(&p.slice_word[lo..]),
+            slices_left,
         }
     }
     #[inline(always)]
@@ -146,23 +149,23 @@ impl Stream {
         store(&mut p.s1[lo..], self.s[1]);
         store(&mut p.s2[lo..], self.s[2]);
         store(&mut p.s3[lo..], self.s[3]);
-        store(&mut p.bits[lo..], self.bits);
-        self.avail
+        store(&mut p.slice_word[lo..], self.slice_word);
+        self.slices_left
     }
-    /// An exact Bernoulli(T / 2^64) draw per lane, T = thr·2^48 + lo, as a lane mask.
+    /// An exact Bernoulli(T / 2^64) draw per lane, T = top·2^48 + rest, as a lane mask.
     #[inline(always)]
-    pub(super) fn draw(&mut self, thr: U, lo: u64, side: &mut [Xoshiro256pp]) -> U {
-        if self.avail == 0 {
-            self.bits = crate::rng::xoshiro256pp_x4(&mut self.s);
-            self.avail = SLICES_PER_WORD;
+    pub(super) fn draw(&mut self, top: U, rest: u64, side: &mut [Xoshiro256pp]) -> U {
+        if self.slices_left == 0 {
+            self.slice_word = crate::rng::xoshiro256pp_x4(&mut self.s);
+            self.slices_left = SLICES_PER_WORD;
         }
-        self.avail -= 1;
-        let u = and(self.bits, splat(SLICE_MASK));
-        self.bits = shr::<SLICE_BITS>(self.bits);
-        let mut hit = gt(thr, u);
-        let tie = eq(u, thr);
+        self.slices_left -= 1;
+        let u = and(self.slice_word, splat(SLICE_MASK));
+        self.slice_word = shr::<SLICE_BITS>(self.slice_word);
+        let mut hit = gt(top, u);
+        let tie = eq(u, top);
         if tie.iter().any(|&t| t != 0) {
-            resolve_ties4(&mut hit, &tie, side, lo);
+            resolve_ties4(&mut hit, &tie, side, rest);
         }
         hit
     }

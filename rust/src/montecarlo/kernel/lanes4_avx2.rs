@@ -1,4 +1,7 @@
-use super::{resolve_ties4, Proto, Xoshiro256pp, SLICES_PER_WORD, SLICE_MASK};
+use super::grouped::resolve_ties4;
+use super::Proto;
+use crate::montecarlo::{SLICES_PER_WORD, SLICE_MASK};
+use crate::rng::Xoshiro256pp;
 use std::arch::x86_64::*;
 
 pub(super) type U = __m256i;
@@ -171,21 +174,21 @@ pub(super) struct Stream {
     s1: U,
     s2: U,
     s3: U,
-    bits: U,
-    avail: u32,
+    slice_word: U,
+    slices_left: u32,
 }
 
 impl Stream {
     #[inline]
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn load(p: &Proto, lo: usize, avail: u32) -> Self {
+    pub(super) unsafe fn load(p: &Proto, lo: usize, slices_left: u32) -> Self {
         Stream {
             s0: load(&p.s0[lo..]),
             s1: load(&p.s1[lo..]),
             s2: load(&p.s2[lo..]),
             s3: load(&p.s3[lo..]),
-            bits: load(&p.bits[lo..]),
-            avail,
+            slice_word: load(&p.slice_word[lo..]),
+            slices_left,
         }
     }
     #[inline]
@@ -195,29 +198,29 @@ impl Stream {
         store(&mut p.s1[lo..], self.s1);
         store(&mut p.s2[lo..], self.s2);
         store(&mut p.s3[lo..], self.s3);
-        store(&mut p.bits[lo..], self.bits);
-        self.avail
+        store(&mut p.slice_word[lo..], self.slice_word);
+        self.slices_left
     }
     #[inline]
     #[target_feature(enable = "avx2")]
-    pub(super) unsafe fn draw(&mut self, thr: U, lo: u64, side: &mut [Xoshiro256pp]) -> U {
-        if self.avail == 0 {
+    pub(super) unsafe fn draw(&mut self, top: U, rest: u64, side: &mut [Xoshiro256pp]) -> U {
+        if self.slices_left == 0 {
             let mut s = [self.s0, self.s1, self.s2, self.s3];
-            self.bits = crate::rng::xoshiro256pp_x4_avx2(&mut s);
+            self.slice_word = crate::rng::xoshiro256pp_x4_avx2(&mut s);
             [self.s0, self.s1, self.s2, self.s3] = s;
-            self.avail = SLICES_PER_WORD;
+            self.slices_left = SLICES_PER_WORD;
         }
-        self.avail -= 1;
-        let u = _mm256_and_si256(self.bits, _mm256_set1_epi64x(SLICE_MASK as i64));
-        self.bits = _mm256_srli_epi64::<16>(self.bits);
+        self.slices_left -= 1;
+        let u = _mm256_and_si256(self.slice_word, _mm256_set1_epi64x(SLICE_MASK as i64));
+        self.slice_word = _mm256_srli_epi64::<16>(self.slice_word);
         // Slices are below 2^16, so the signed compare is exact.
-        let mut hit = _mm256_cmpgt_epi64(thr, u);
-        let tie = _mm256_cmpeq_epi64(u, thr);
+        let mut hit = _mm256_cmpgt_epi64(top, u);
+        let tie = _mm256_cmpeq_epi64(u, top);
         if _mm256_movemask_pd(_mm256_castsi256_pd(tie)) != 0 {
             let (mut h, mut t) = ([0u64; 4], [0u64; 4]);
             _mm256_storeu_si256(h.as_mut_ptr() as *mut __m256i, hit);
             _mm256_storeu_si256(t.as_mut_ptr() as *mut __m256i, tie);
-            resolve_ties4(&mut h, &t, side, lo);
+            resolve_ties4(&mut h, &t, side, rest);
             hit = _mm256_loadu_si256(h.as_ptr() as *const __m256i);
         }
         hit
