@@ -32,18 +32,17 @@
 //! in the same order, hence are bit-identical. The random streams differ from the lane kernels',
 //! so for one seed the two families give different (equally distributed) samples.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::ops::Range;
+use std::sync::atomic::AtomicBool;
 
 use super::KernelFlags;
-use crate::error::{Error, Result};
+use crate::error::Result;
 
+mod body;
 mod words;
 
+use body::body;
 pub(super) use words::RUNS;
-use words::{
-    and, andnot, equals, increment, less_than, not, or, popcount, splat, xor, LaneCounter, Rng4,
-    BATCH, ONES, W, ZERO,
-};
 
 /// Deepest thermometer (largest τ bound, and largest memory z0 + 1 under attack) the kernel
 /// takes; deeper plans use the lane kernels, whose cost does not grow with the bound.
@@ -63,8 +62,8 @@ pub(super) struct BsPlan {
     pub(super) fixed_memory: usize,
     /// Offline pattern (1 = high power); unused online.
     pub(super) pattern: Vec<u8>,
-    /// Runs of ones of the blocking mask, as half-open intervals of the counter.
-    pub(super) mask_runs: Vec<(u64, u64)>,
+    /// Runs of ones of the blocking mask, as intervals of the counter.
+    pub(super) mask_runs: Vec<Range<u64>>,
     pub(super) mask_len: u64,
     /// tr[τ], τ = 0..=depth.
     pub(super) tr: Vec<f64>,
@@ -91,15 +90,15 @@ impl BsPlan {
     }
 }
 
-/// Runs of ones of `mask` as half-open index intervals.
-pub(super) fn mask_runs(mask: &[bool]) -> Vec<(u64, u64)> {
+/// Runs of ones of `mask` as index intervals.
+pub(super) fn mask_runs(mask: &[bool]) -> Vec<Range<u64>> {
     let mut runs = Vec::new();
     let mut start = None;
     for (i, &b) in mask.iter().chain(std::iter::once(&false)).enumerate() {
         match (b, start) {
             (true, None) => start = Some(i as u64),
             (false, Some(s)) => {
-                runs.push((s, i as u64));
+                runs.push(s..i as u64);
                 start = None;
             }
             _ => {}
@@ -129,207 +128,6 @@ pub(super) struct BsBlock<'a> {
     pub(super) record: bool,
     /// Per-step sums over the active lanes are added here (length = horizon).
     pub(super) acc: &'a mut [f64],
-}
-
-/// OR of the levels whose selector is set (a level picked by a run-time index without
-/// indexing, so the levels can live in registers).
-#[inline(always)]
-fn pick<const D: usize>(levels: &[W; D], sel: &[bool; D]) -> W {
-    let mut out = ZERO;
-    for j in 0..D {
-        out = or(out, and(levels[j], splat(sel[j])));
-    }
-    out
-}
-
-/// The kernel on thermometers of D levels (levels[j] holds "≥ j + 1") and B counter planes;
-/// `AVX` steps the random streams in AVX2 registers.
-#[inline(always)]
-fn body<
-    const ONLINE: bool,
-    const MU_DRAW: bool,
-    const ATTACK: bool,
-    const PROTO_A: bool,
-    const D: usize,
-    const B: usize,
-    const AVX: bool,
->(
-    p: &BsPlan,
-    b: &mut BsBlock,
-    cancel: &AtomicBool,
-) -> Result<BsOut> {
-    let bits = p.counter_bits();
-    if p.levels(MU_DRAW, ATTACK) > D || (ATTACK && bits > B) || b.active > RUNS {
-        return Err(Error::invalid(
-            "sys",
-            "plan too large for the bit-sliced kernel",
-        ));
-    }
-    let active: W = std::array::from_fn(|w| match b.active.saturating_sub(64 * w) {
-        0 => 0,
-        n if n >= 64 => u64::MAX,
-        n => (1u64 << n) - 1,
-    });
-    // tr padded with zeros to D + 1 levels (the extra levels are never occupied).
-    let tr: [f64; MAX_DEPTH + 1] = std::array::from_fn(|j| p.tr.get(j).copied().unwrap_or(0.0));
-    // Selectors of the memory lengths: level L - 1 holds "≥ L".
-    let sel = |len: usize| -> [bool; D] { std::array::from_fn(|j| j + 1 == len) };
-    let (sel_fixed, sel_short, sel_long) = (sel(p.fixed_memory), sel(p.z0), sel(p.z0 + 1));
-    let mut rng = Rng4::for_block(b.seed, b.block);
-    let mut therm = [ZERO; D];
-    let mut zeros = [ZERO; D];
-    let mut sigma = [ZERO; B];
-    let mut hi = ONES; // k = 1 is a high-power step
-    let mut counters = [LaneCounter::NEW; D];
-    let (mut sent_c, mut lost_c) = (LaneCounter::NEW, LaneCounter::NEW);
-    let mut batch = [[ZERO; BATCH]; D];
-    let (mut sent_b, mut lost_b) = ([ZERO; BATCH], [ZERO; BATCH]);
-    let mut pat = 0usize;
-    let horizon = b.acc.len();
-    for (k0, steps) in b.acc.chunks_mut(BATCH).enumerate() {
-        if (k0 * BATCH) % CANCEL_STEPS == 0 && cancel.load(Ordering::Relaxed) {
-            return Err(Error::Interrupted);
-        }
-        for (s, acc) in steps.iter_mut().enumerate() {
-            let high = if ONLINE {
-                hi
-            } else {
-                let g = p.pattern[pat];
-                pat = if pat + 1 == p.pattern.len() {
-                    0
-                } else {
-                    pat + 1
-                };
-                splat(g == 1)
-            };
-            // Only low-power packets need the channel's draw.
-            let arrive = or(high, rng.bernoulli::<AVX>(p.lam_thr, not(high)));
-            // τ' = 0 on arrival, else τ + 1 (never beyond the plan's bound <= D).
-            for j in (1..D).rev() {
-                therm[j] = andnot(therm[j - 1], arrive);
-            }
-            therm[0] = not(arrive);
-            // Histogram of τ over the active lanes from n[j] = #(τ >= j); empty bins add
-            // nothing (a select, not a branch, and no 0 · inf).
-            let mut above = b.active as u32;
-            let mut v = 0.0;
-            for j in 0..D {
-                let n = popcount(and(therm[j], active));
-                let x = tr[j] * f64::from(above - n);
-                v += if above != n { x } else { 0.0 };
-                above = n;
-                batch[j][s] = therm[j];
-            }
-            let x = tr[D] * f64::from(above);
-            *acc += v + if above != 0 { x } else { 0.0 };
-            if !ONLINE {
-                continue;
-            }
-            // The detector flags where the zero count reaches the memory: z0 bits (`short`,
-            // drawn only where the count is exactly z0, the one place it matters) or z0 + 1
-            // with a μ draw, else the fixed length.
-            let mut reached = |t: &[W; D]| -> W {
-                if MU_DRAW {
-                    let (long, at_z0) = (pick(t, &sel_long), pick(t, &sel_short));
-                    let short = rng.bernoulli::<AVX>(p.mu_thr, andnot(at_z0, long));
-                    or(long, and(at_z0, short))
-                } else {
-                    pick(t, &sel_fixed)
-                }
-            };
-            let (flag, lost);
-            if ATTACK {
-                for j in (1..D).rev() {
-                    zeros[j] = andnot(zeros[j - 1], arrive);
-                }
-                zeros[0] = not(arrive);
-                flag = reached(&zeros);
-                for z in zeros.iter_mut() {
-                    *z = andnot(*z, flag);
-                }
-                let mut blocking = ZERO;
-                for &(lo, end) in &p.mask_runs {
-                    let below_end = less_than(&sigma, end);
-                    let run = if lo == 0 {
-                        below_end
-                    } else {
-                        andnot(below_end, less_than(&sigma, lo))
-                    };
-                    blocking = or(blocking, run);
-                }
-                if PROTO_A {
-                    // One bit every step; the attacker flips 1-bits to 0.
-                    let bit = flag;
-                    lost = and(bit, blocking);
-                    hi = xor(bit, lost);
-                    increment(&mut sigma, bit);
-                } else {
-                    // A flag packet only when a flag is due; the attacker drops it.
-                    lost = and(flag, blocking);
-                    hi = andnot(flag, lost);
-                    increment(&mut sigma, flag);
-                }
-                // All B planes take part (B >= bits; the planes above `bits` stay zero), so
-                // these loops unroll.
-                let wrap = equals(&sigma, p.mask_len);
-                for plane in sigma.iter_mut() {
-                    *plane = andnot(*plane, wrap);
-                }
-            } else {
-                // Without an attacker every flag is delivered and followed by an arrival, so
-                // the zero count equals τ whenever it matters.
-                flag = reached(&therm);
-                lost = ZERO;
-                hi = flag;
-            }
-            sent_b[s] = flag;
-            lost_b[s] = lost;
-        }
-        // A partial last batch counts zeros in its unused slots.
-        let n = steps.len();
-        for (c, d) in counters.iter_mut().zip(batch.iter_mut()) {
-            d[n..].fill(ZERO);
-            c.add16(d);
-        }
-        if ONLINE {
-            sent_b[n..].fill(ZERO);
-            sent_c.add16(&sent_b);
-            if ATTACK {
-                lost_b[n..].fill(ZERO);
-                lost_c.add16(&lost_b);
-            }
-        }
-    }
-    // Each lane's Σ_k tr[τ_k] from its histogram, in the order of the per-step sums.
-    let mut above = [horizon as u64; RUNS];
-    let mut sum = vec![0.0; RUNS];
-    for (j, c) in counters.iter().enumerate() {
-        for ((s, a), n) in sum.iter_mut().zip(above.iter_mut()).zip(c.counts()) {
-            let x = tr[j] * (*a - n) as f64;
-            *s += if *a != n { x } else { 0.0 };
-            *a = n;
-        }
-    }
-    for (s, a) in sum.iter_mut().zip(above) {
-        let x = tr[D] * a as f64;
-        *s += if a != 0 { x } else { 0.0 };
-    }
-    Ok(BsOut {
-        sum,
-        delivered: if b.record {
-            let (sent, lost) = (sent_c.counts(), lost_c.counts());
-            (0..RUNS).map(|l| sent[l] - lost[l]).collect()
-        } else {
-            Vec::new()
-        },
-        sent: sent_c.total(active),
-        blocked: lost_c.total(active),
-        hi_last: if ONLINE {
-            u64::from(popcount(and(hi, active)))
-        } else {
-            0
-        },
-    })
 }
 
 fn block_portable<const O: bool, const M: bool, const A: bool, const P: bool>(

@@ -137,9 +137,9 @@ fn counters_and_comparisons() {
             }
         }
     }
-    assert_eq!(mask_runs(&[true, true, false, true]), vec![(0, 2), (3, 4)]);
+    assert_eq!(mask_runs(&[true, true, false, true]), vec![0..2, 3..4]);
     assert_eq!(mask_runs(&[false, false]), vec![]);
-    assert_eq!(mask_runs(&[true]), vec![(0, 1)]);
+    assert_eq!(mask_runs(&[true]), vec![0..1]);
 }
 
 /// What the plain per-lane simulation reports.
