@@ -9,7 +9,7 @@ use super::bitslice::{self, BsBlock, BsPlan};
 use super::config::{McConfig, McResult};
 use super::kernel::{cov_tile, detect_isa, Isa, Tile, TileOut};
 use super::plan::Plan;
-use super::state::state_tile_impl;
+use super::state::state_tile;
 use super::{BLOCK_RUNS, LANES};
 use crate::error::{Error, Result};
 use crate::riccati::LinearSystem;
@@ -22,7 +22,7 @@ fn run_tile(plan: &Plan, isa: Isa, tile: &mut Tile, cancel: &AtomicBool) -> Resu
         ($o:expr, $m:expr, $a:expr, $pa:expr) => {
             match &plan.state {
                 None => cov_tile::<$o, $m, $a, $pa>(isa, &p, &plan.tr, tile, cancel),
-                Some(model) => state_tile_impl::<$o, $m, $a, $pa>(isa, &p, model, tile, cancel),
+                Some(model) => state_tile::<$o, $m, $a, $pa>(isa, &p, model, tile, cancel),
             }
         };
     }
