@@ -8,6 +8,7 @@
 //! *weighted* traces, which stay finite where `tr_i` alone would overflow), `tau` the holding time
 //! since the last arrival and `sigma` the attacker's flag-ACK counter.
 
+#![deny(unsafe_op_in_unsafe_fn)]
 pub mod attack;
 pub mod chain;
 pub mod error;

@@ -72,13 +72,12 @@ pub fn xoshiro256pp_x4(s: &mut [[u64; 4]; 4]) -> [u64; 4] {
 /// generators. Returns the four outputs.
 ///
 /// # Safety
-/// The CPU must support AVX2.
+/// Compiled for AVX2: safe to call from other functions compiled for AVX2; elsewhere the call is
+/// `unsafe`, and the CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[inline]
 #[target_feature(enable = "avx2")]
-pub unsafe fn xoshiro256pp_x4_avx2(
-    s: &mut [std::arch::x86_64::__m256i; 4],
-) -> std::arch::x86_64::__m256i {
+pub fn xoshiro256pp_x4_avx2(s: &mut [std::arch::x86_64::__m256i; 4]) -> std::arch::x86_64::__m256i {
     use std::arch::x86_64::*;
     let [s0, s1, s2, s3] = *s;
     let sum = _mm256_add_epi64(s0, s3);

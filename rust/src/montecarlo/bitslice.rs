@@ -35,6 +35,7 @@
 use std::ops::Range;
 use std::sync::atomic::AtomicBool;
 
+use super::cpu::Avx2;
 use super::KernelFlags;
 use crate::error::Result;
 
@@ -42,6 +43,7 @@ mod body;
 mod words;
 
 use body::body;
+use words::Portable;
 pub(super) use words::RUNS;
 
 /// Deepest thermometer (largest τ bound, and largest memory z0 + 1 under attack) the kernel
@@ -130,19 +132,21 @@ pub(super) struct BsBlock<'a> {
     pub(super) acc: &'a mut [f64],
 }
 
+/// The portable kernel: every plan on the deepest thermometer and 64 counter planes.
 fn block_portable<const O: bool, const M: bool, const A: bool, const P: bool>(
     p: &BsPlan,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, MAX_DEPTH, 64, false>(p, b, cancel)
+    body::<O, M, A, P, MAX_DEPTH, 64, Portable>(p, b, cancel, Portable)
 }
 
-/// # Safety
-/// The CPU must support AVX2 and POPCNT.
+/// The kernel on AVX2 registers with D thermometer levels and B counter planes. Compiled for
+/// AVX2 and POPCNT, so calling it is `unsafe` except from such code; [`run_block`] calls it
+/// with an [`Avx2`] token and after detecting POPCNT.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,popcnt")]
-unsafe fn block_avx2<
+fn block_avx2<
     const O: bool,
     const M: bool,
     const A: bool,
@@ -150,55 +154,58 @@ unsafe fn block_avx2<
     const D: usize,
     const B: usize,
 >(
+    avx2: Avx2,
     p: &BsPlan,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, D, B, true>(p, b, cancel)
+    body::<O, M, A, P, D, B, Avx2>(p, b, cancel, avx2)
 }
 
 /// The AVX2 kernel for flags ($o, $m, $a, $pa) and counter width $b, specialised on the
-/// smallest thermometer size that holds `levels`.
+/// smallest thermometer size that holds `levels`; `$t` is the [`Avx2`] token.
 #[cfg(target_arch = "x86_64")]
 macro_rules! avx2_by_depth {
-    ($o:expr, $m:expr, $a:expr, $pa:expr, $b:literal, $levels:expr, $p:ident, $blk:ident, $c:ident) => {
-        // SAFETY (all arms): the caller checked AVX2 and POPCNT at run time.
+    ($o:expr, $m:expr, $a:expr, $pa:expr, $b:literal, $levels:expr, $t:ident, $p:ident, $blk:ident, $c:ident) => {
+        // SAFETY: `$t` is a token that only `Avx2::detect` makes, on a CPU with AVX2, and
+        // `run_block` detected POPCNT before using it: the two features `block_avx2` is
+        // compiled for.
         unsafe {
             match $levels {
-                0..=2 => block_avx2::<$o, $m, $a, $pa, 2, $b>($p, $blk, $c),
-                3..=4 => block_avx2::<$o, $m, $a, $pa, 4, $b>($p, $blk, $c),
-                5..=8 => block_avx2::<$o, $m, $a, $pa, 8, $b>($p, $blk, $c),
-                9..=16 => block_avx2::<$o, $m, $a, $pa, 16, $b>($p, $blk, $c),
-                _ => block_avx2::<$o, $m, $a, $pa, 32, $b>($p, $blk, $c),
+                0..=2 => block_avx2::<$o, $m, $a, $pa, 2, $b>($t, $p, $blk, $c),
+                3..=4 => block_avx2::<$o, $m, $a, $pa, 4, $b>($t, $p, $blk, $c),
+                5..=8 => block_avx2::<$o, $m, $a, $pa, 8, $b>($t, $p, $blk, $c),
+                9..=16 => block_avx2::<$o, $m, $a, $pa, 16, $b>($t, $p, $blk, $c),
+                _ => block_avx2::<$o, $m, $a, $pa, 32, $b>($t, $p, $blk, $c),
             }
         }
     };
 }
 
-/// Runs one block with the kernel for (online, μ draw, attack, protocol A), on AVX2 if `avx2`
-/// and the CPU has it.
+/// Runs one block with the kernel for `flags`, on AVX2 if given the token `avx2` and the CPU
+/// also has POPCNT, else on the portable kernel (both give the same results).
 pub(super) fn run_block(
     p: &BsPlan,
     flags: KernelFlags,
-    avx2: bool,
+    avx2: Option<Avx2>,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
     #[cfg(target_arch = "x86_64")]
-    if avx2 && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("popcnt") {
+    if let Some(avx2) = avx2.filter(|_| is_x86_feature_detected!("popcnt")) {
         let levels = p.levels(flags.mu_draw, flags.attack);
         // Counter planes: none without an attacker, 4 for masks up to 15 long, else 64.
         let wide = p.counter_bits() > 4;
         // Only attacked kernels have counter planes: monomorphise B = 4 and 64 for those alone.
         macro_rules! sized {
             ($o:tt, $m:tt, false, $pa:tt) => {
-                avx2_by_depth!($o, $m, false, $pa, 1, levels, p, b, cancel)
+                avx2_by_depth!($o, $m, false, $pa, 1, levels, avx2, p, b, cancel)
             };
             ($o:tt, $m:tt, true, $pa:tt) => {
                 if wide {
-                    avx2_by_depth!($o, $m, true, $pa, 64, levels, p, b, cancel)
+                    avx2_by_depth!($o, $m, true, $pa, 64, levels, avx2, p, b, cancel)
                 } else {
-                    avx2_by_depth!($o, $m, true, $pa, 4, levels, p, b, cancel)
+                    avx2_by_depth!($o, $m, true, $pa, 4, levels, avx2, p, b, cancel)
                 }
             };
         }

@@ -97,14 +97,10 @@ fn run_bitslice_block(
     let first = block * BLOCK_RUNS;
     let runs = BLOCK_RUNS.min(plan.runs - first);
     let mut acc = vec![0.0; plan.horizon];
-    #[cfg(target_arch = "x86_64")]
-    let avx2 = isa == Isa::Avx2;
-    #[cfg(not(target_arch = "x86_64"))]
-    let avx2 = false;
     let res = bitslice::run_block(
         bs,
         plan.flags(),
-        avx2,
+        isa.avx2(),
         &mut BsBlock {
             seed: plan.seed,
             block,

@@ -5,6 +5,7 @@
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use super::cpu::Avx2;
 use super::{CHUNK_STEPS, LANES, SLICE_BITS};
 use crate::error::{Error, Result};
 use crate::rng::Xoshiro256pp;
@@ -121,21 +122,43 @@ pub(super) struct Tile<'a> {
 pub(super) enum Isa {
     /// Grouped kernel on plain arrays (any target; auto-vectorised where possible).
     Portable,
-    /// Grouped kernel on AVX2 registers (x86-64, chosen at run time).
+    /// Grouped kernel on AVX2 registers (x86-64, chosen at run time), with the token that
+    /// proves the CPU supports AVX2.
     #[cfg(target_arch = "x86_64")]
-    Avx2,
+    Avx2(Avx2),
     /// The 16-lane [`Proto::step`] kernel: the reference in tests.
     #[cfg(test)]
     Reference,
 }
 
+impl Isa {
+    /// The AVX2 token, if this is the AVX2 kernel (the bit-sliced kernel's choice follows it).
+    pub(super) fn avx2(self) -> Option<Avx2> {
+        #[cfg(target_arch = "x86_64")]
+        if let Isa::Avx2(token) = self {
+            return Some(token);
+        }
+        None
+    }
+
+    /// The kernel's name: `Portable`, `Avx2` or `Reference`.
+    #[cfg_attr(not(test), allow(dead_code))]
+    pub(super) fn name(self) -> &'static str {
+        match self {
+            Isa::Portable => "Portable",
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx2(_) => "Avx2",
+            #[cfg(test)]
+            Isa::Reference => "Reference",
+        }
+    }
+}
+
 /// The fastest kernel this CPU runs.
 pub(super) fn detect_isa() -> Isa {
     #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx2") {
-            return Isa::Avx2;
-        }
+    if let Some(token) = Avx2::detect() {
+        return Isa::Avx2(token);
     }
     Isa::Portable
 }

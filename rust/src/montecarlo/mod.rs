@@ -111,6 +111,7 @@ macro_rules! by_flags {
 
 mod bitslice;
 mod config;
+mod cpu;
 mod driver;
 mod kernel;
 mod plan;

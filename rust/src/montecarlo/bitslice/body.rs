@@ -7,7 +7,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::words::{
     and, andnot, equals, increment, less_than, not, or, popcount, splat, xor, LaneCounter, Rng4,
-    BATCH, ONES, RUNS, W, ZERO,
+    StreamStepper, BATCH, ONES, RUNS, W, ZERO,
 };
 use super::{BsBlock, BsOut, BsPlan, CANCEL_STEPS, MAX_DEPTH};
 use crate::error::{Error, Result};
@@ -57,15 +57,16 @@ impl<const D: usize> MemoryLevels<D> {
     /// drawn only where the count is exactly z0, the one place it matters) or z0 + 1 with a μ
     /// draw, else the fixed length.
     #[inline(always)]
-    fn reached<const MU_DRAW: bool, const AVX: bool>(
+    fn reached<const MU_DRAW: bool, S: StreamStepper>(
         &self,
         count: &[W; D],
         rng: &mut Rng4,
+        stepper: S,
         mu_thr: u64,
     ) -> W {
         if MU_DRAW {
             let (long, at_z0) = (pick(count, &self.long), pick(count, &self.short));
-            let short = rng.bernoulli::<AVX>(mu_thr, andnot(at_z0, long));
+            let short = rng.bernoulli(stepper, mu_thr, andnot(at_z0, long));
             or(long, and(at_z0, short))
         } else {
             pick(count, &self.fixed)
@@ -246,7 +247,7 @@ fn pattern_step(pattern: &[u8], pos: &mut usize) -> W {
 }
 
 /// The kernel on thermometers of D levels (levels[j] holds "≥ j + 1") and B counter planes;
-/// `AVX` steps the random streams in AVX2 registers.
+/// `stepper` steps the random streams (on AVX2 registers, or portably).
 #[inline(always)]
 pub(super) fn body<
     const ONLINE: bool,
@@ -255,11 +256,12 @@ pub(super) fn body<
     const PROTO_A: bool,
     const D: usize,
     const B: usize,
-    const AVX: bool,
+    S: StreamStepper,
 >(
     p: &BsPlan,
     b: &mut BsBlock,
     cancel: &AtomicBool,
+    stepper: S,
 ) -> Result<BsOut> {
     if p.levels(MU_DRAW, ATTACK) > D || (ATTACK && p.counter_bits() > B) || b.active > RUNS {
         return Err(Error::invalid(
@@ -290,7 +292,7 @@ pub(super) fn body<
                 pattern_step(&p.pattern, &mut pattern_pos)
             };
             // Only low-power packets need the channel's draw.
-            let arrive = or(high, rng.bernoulli::<AVX>(p.lam_thr, not(high)));
+            let arrive = or(high, rng.bernoulli(stepper, p.lam_thr, not(high)));
             // τ' = 0 on arrival, else τ + 1 (never beyond the plan's bound <= D).
             step_up(&mut therm, arrive);
             *acc += step_sum(&therm, active, b.active, &tr, &mut tallies.level_batch, s);
@@ -300,7 +302,7 @@ pub(super) fn body<
             let (flag, lost);
             if ATTACK {
                 step_up(&mut zeros, arrive);
-                flag = memory.reached::<MU_DRAW, AVX>(&zeros, &mut rng, p.mu_thr);
+                flag = memory.reached::<MU_DRAW, S>(&zeros, &mut rng, stepper, p.mu_thr);
                 for z in zeros.iter_mut() {
                     *z = andnot(*z, flag);
                 }
@@ -311,7 +313,7 @@ pub(super) fn body<
             } else {
                 // Without an attacker every flag is delivered and followed by an arrival, so
                 // the zero count equals τ whenever it matters.
-                flag = memory.reached::<MU_DRAW, AVX>(&therm, &mut rng, p.mu_thr);
+                flag = memory.reached::<MU_DRAW, S>(&therm, &mut rng, stepper, p.mu_thr);
                 lost = ZERO;
                 hi = flag;
             }

@@ -2,6 +2,7 @@
 
 use super::words::*;
 use super::*;
+use crate::montecarlo::cpu::Avx2;
 
 /// Bit `l` of a lane word.
 fn lane(w: &W, l: usize) -> bool {
@@ -27,10 +28,10 @@ impl Recorder {
         // Replay: draw with a clone, count how many words it used, then record them.
         let mut probe = Rng4 { s: self.rng.s };
         let before = probe.s;
-        let hit = probe.bernoulli::<false>(thr, need);
+        let hit = probe.bernoulli(Portable, thr, need);
         let mut replay = Rng4 { s: before };
         while replay.s != probe.s {
-            self.words.push(replay.next::<false>());
+            self.words.push(replay.next(Portable));
         }
         self.rng = probe;
         hit
@@ -91,7 +92,7 @@ fn bernoulli_frequency() {
         let mut rng = Rng4::for_block(4, 1);
         let draws = 4000u32;
         let hits: u64 = (0..draws)
-            .map(|_| u64::from(popcount(rng.bernoulli::<false>(thr, ONES))))
+            .map(|_| u64::from(popcount(rng.bernoulli(Portable, thr, ONES))))
             .sum();
         let n = f64::from(draws) * RUNS as f64;
         let se = (p * (1.0 - p) / n).sqrt();
@@ -111,7 +112,7 @@ fn counters_and_comparisons() {
     let mut naive = vec![0u64; RUNS];
     for _ in 0..37 {
         let batch: [W; BATCH] =
-            std::array::from_fn(|_| and(rng.next::<false>(), rng.next::<false>()));
+            std::array::from_fn(|_| and(rng.next(Portable), rng.next(Portable)));
         for w in &batch {
             for (l, n) in naive.iter_mut().enumerate() {
                 *n += u64::from(lane(w, l));
@@ -122,7 +123,7 @@ fn counters_and_comparisons() {
     assert_eq!(c.counts().to_vec(), naive);
     // Binary planes against plain integers.
     for bits in [1usize, 3, 5, 64] {
-        let planes: Vec<W> = (0..bits).map(|_| rng.next::<false>()).collect();
+        let planes: Vec<W> = (0..bits).map(|_| rng.next(Portable)).collect();
         let value =
             |l: usize| -> u64 { (0..bits).map(|i| u64::from(lane(&planes[i], l)) << i).sum() };
         let mut consts: Vec<u64> = vec![0, 1, 2, 5, 31, 32, 33, u64::MAX];
@@ -166,7 +167,7 @@ fn histogram_sum(tr: &[f64], counts: &[u64]) -> f64 {
 
 /// The protocol with one integer state per lane, fed by the same Bernoulli words.
 fn plain(case: &Case, horizon: usize, active: usize, seed: u64, block: u64) -> Plain {
-    let (p, mask) = (&case.plan, case.mask);
+    let (p, mask) = (&case.plan, case.mask.as_deref());
     let KernelFlags {
         online,
         mu_draw,
@@ -199,7 +200,7 @@ fn plain(case: &Case, horizon: usize, active: usize, seed: u64, block: u64) -> P
             })
             .collect();
         // Draws only for the low-power lanes.
-        let lucky = rng.bernoulli::<false>(p.lam_thr, from_lanes(|l| !high[l]));
+        let lucky = rng.bernoulli(Portable, p.lam_thr, from_lanes(|l| !high[l]));
         let mut step_hist = vec![0u64; depth + 1];
         let mut arrive = vec![false; RUNS];
         for l in 0..RUNS {
@@ -225,7 +226,7 @@ fn plain(case: &Case, horizon: usize, active: usize, seed: u64, block: u64) -> P
                 .collect();
             // μ is drawn only where the count is exactly z0.
             let short = if mu_draw {
-                rng.bernoulli::<false>(p.mu_thr, from_lanes(|l| count[l] == p.z0))
+                rng.bernoulli(Portable, p.mu_thr, from_lanes(|l| count[l] == p.z0))
             } else {
                 ZERO
             };
@@ -294,13 +295,13 @@ fn plan(
 }
 
 /// One experiment of the comparison: the plan, its protocol paths and its blocking mask.
-struct Case<'a> {
+struct Case {
     plan: BsPlan,
     flags: KernelFlags,
-    mask: Option<&'a [bool]>,
+    mask: Option<Vec<bool>>,
 }
 
-impl<'a> Case<'a> {
+impl Case {
     fn offline(plan: BsPlan) -> Self {
         let flags = KernelFlags {
             online: false,
@@ -316,13 +317,14 @@ impl<'a> Case<'a> {
     }
 
     /// Online, under protocol B (attacked if `mask` is given).
-    fn online(plan: BsPlan, mu_draw: bool, mask: Option<&'a [bool]>) -> Self {
+    fn online(plan: BsPlan, mu_draw: bool, mask: Option<&[bool]>) -> Self {
         let flags = KernelFlags {
             online: true,
             mu_draw,
             attack: mask.is_some(),
             protocol_a: false,
         };
+        let mask = mask.map(<[bool]>::to_vec);
         Case { plan, flags, mask }
     }
 
@@ -332,8 +334,9 @@ impl<'a> Case<'a> {
     }
 }
 
-#[test]
-fn matches_plain_per_lane_simulation() {
+/// Every protocol path, masks with up to four runs of ones and a counter of 5 bits (the wide
+/// specialisation), offline patterns, and a depth below the reachable τ bound.
+fn cases() -> Vec<Case> {
     let mask_a = [true, false, true, false, false];
     let mask_b: Vec<bool> = (0..13)
         .map(|i| i == 0 || i == 12 || (4..7).contains(&i))
@@ -342,7 +345,7 @@ fn matches_plain_per_lane_simulation() {
     let mask_c: Vec<bool> = (0..19).map(|i| [1, 2, 5, 9, 10, 17].contains(&i)).collect();
     let mut long_gap = vec![0u8; 21];
     long_gap[0] = 1;
-    let cases: Vec<Case> = vec![
+    vec![
         Case::online(plan(0.45, 1.0, 2, 2, vec![1], None, 2), false, None),
         Case::online(plan(0.3, 0.4, 2, 3, vec![1], None, 3), true, None),
         Case::online(
@@ -391,21 +394,46 @@ fn matches_plain_per_lane_simulation() {
         Case::offline(plan(0.15, 1.0, 1, 1, long_gap.clone(), None, 20)),
         // A depth below the reachable τ bound (a short horizon caps it) and an all-ones pattern.
         Case::offline(plan(0.5, 1.0, 1, 1, vec![1], None, 0)),
-    ];
-    for (i, case) in cases.iter().enumerate() {
-        let p = &case.plan;
-        for (horizon, active, record) in [(333usize, RUNS, true), (40, 77, true), (17, 200, false)]
-        {
-            let mut acc = vec![0.0; horizon];
-            let flags = case.flags;
-            let mut b = BsBlock {
-                seed: 3,
-                block: i as u64,
-                active,
-                record,
-                acc: &mut acc,
-            };
-            let got = run_block(p, flags, false, &mut b, &AtomicBool::new(false)).unwrap();
+    ]
+}
+
+/// One block of `case` on the bit-sliced kernel (AVX2 if given the token), with the
+/// per-step sums it added to a zeroed buffer.
+fn run_case(
+    case: &Case,
+    block: u64,
+    (horizon, active, record): (usize, usize, bool),
+    avx2: Option<Avx2>,
+) -> (BsOut, Vec<f64>) {
+    let mut acc = vec![0.0; horizon];
+    let mut b = BsBlock {
+        seed: 3,
+        block,
+        active,
+        record,
+        acc: &mut acc,
+    };
+    let out = run_block(
+        &case.plan,
+        case.flags,
+        avx2,
+        &mut b,
+        &AtomicBool::new(false),
+    )
+    .unwrap();
+    (out, acc)
+}
+
+/// (horizon, active lanes, record) of the comparisons: a full block, partial ones, and a
+/// horizon that is not a multiple of the batch.
+const SHAPES: [(usize, usize, bool); 3] = [(333, RUNS, true), (40, 77, true), (17, 200, false)];
+
+#[test]
+fn matches_plain_per_lane_simulation() {
+    for (i, case) in cases().iter().enumerate() {
+        for shape in SHAPES {
+            let (horizon, active, record) = shape;
+            let (got, acc) = run_case(case, i as u64, shape, None);
             let want = plain(case, horizon, active, 3, i as u64);
             assert_eq!(acc, want.acc, "case {i} horizon {horizon}");
             assert_eq!(got.sum, want.sum, "case {i}");
@@ -417,17 +445,32 @@ fn matches_plain_per_lane_simulation() {
             if record {
                 assert_eq!(got.delivered, want.delivered, "case {i}");
             }
-            // The vector build is the same computation.
-            let mut acc2 = vec![0.0; horizon];
-            let mut b = BsBlock {
-                seed: 3,
-                block: i as u64,
-                active,
-                record,
-                acc: &mut acc2,
-            };
-            let again = run_block(p, flags, true, &mut b, &AtomicBool::new(false)).unwrap();
-            assert_eq!((acc2, again.sum), (acc, got.sum), "case {i} avx2");
+        }
+    }
+}
+
+/// The vector build is the same computation as the portable one, bit for bit.
+#[test]
+fn avx2_matches_portable() {
+    let Some(avx2) = Avx2::detect() else {
+        eprintln!("SKIPPED: avx2_matches_portable: this CPU has no AVX2, so the AVX2 build was not checked");
+        return;
+    };
+    for (i, case) in cases().iter().enumerate() {
+        for shape in SHAPES {
+            let (portable, acc) = run_case(case, i as u64, shape, None);
+            let (again, acc2) = run_case(case, i as u64, shape, Some(avx2));
+            assert_eq!((acc2, again.sum), (acc, portable.sum), "case {i} avx2");
+            assert_eq!(
+                (again.sent, again.blocked, again.hi_last, again.delivered),
+                (
+                    portable.sent,
+                    portable.blocked,
+                    portable.hi_last,
+                    portable.delivered
+                ),
+                "case {i} avx2"
+            );
         }
     }
 }

@@ -1,6 +1,8 @@
 //! Word-parallel building blocks of the bit-sliced kernel: lane words of 256 runs, their random
 //! source, comparisons of binary counters with constants, and per-lane counters.
 
+#[cfg(target_arch = "x86_64")]
+use crate::montecarlo::cpu::Avx2;
 use crate::rng::{xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
 
 /// Words per block; 64 runs per word.
@@ -50,8 +52,39 @@ pub(crate) fn splat(b: bool) -> W {
     [0u64.wrapping_sub(u64::from(b)); WORDS]
 }
 
+/// How [`Rng4`] steps its four streams: [`Portable`] on any CPU, or [`Avx2`] in AVX2 registers
+/// (the token proves the CPU's support). Both give the same words.
+pub(crate) trait StreamStepper: Copy {
+    /// One xoshiro256++ step of the four streams `s` (transposed, as [`xoshiro256pp_x4`] takes
+    /// them); returns their outputs.
+    fn step(self, s: &mut [W; 4]) -> W;
+}
+
+/// Steps the streams with plain u64 arithmetic (LLVM keeps it scalar: AVX2 has no 64-bit
+/// rotate).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Portable;
+
+impl StreamStepper for Portable {
+    #[inline(always)]
+    fn step(self, s: &mut [W; 4]) -> W {
+        xoshiro256pp_x4(s)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl StreamStepper for Avx2 {
+    #[inline(always)]
+    fn step(self, s: &mut [W; 4]) -> W {
+        // SAFETY: `self` is a token that only `Avx2::detect` makes, on a CPU with AVX2, the one
+        // feature `next_avx2` is compiled for.
+        unsafe { next_avx2(s) }
+    }
+}
+
 /// Four xoshiro256++ streams, one per word: bit l of a word is run (64 w + l)'s random bit.
 pub(crate) struct Rng4 {
+    /// The streams' state, transposed: `s[k][w]` is state word k of word w's stream.
     pub(crate) s: [W; 4],
 }
 
@@ -68,17 +101,10 @@ impl Rng4 {
         }
     }
 
-    /// The next word of each stream; `AVX` steps them in AVX2 registers (LLVM keeps the
-    /// portable version scalar: AVX2 has no 64-bit rotate).
+    /// The next word of each stream, stepped by `stepper`.
     #[inline(always)]
-    pub(crate) fn next<const AVX: bool>(&mut self) -> W {
-        #[cfg(target_arch = "x86_64")]
-        if AVX {
-            // SAFETY: kernels with AVX = true are compiled for AVX2 and run only after the
-            // run-time check (see `block_avx2`).
-            return unsafe { next_avx2(&mut self.s) };
-        }
-        xoshiro256pp_x4(&mut self.s)
+    pub(crate) fn next<S: StreamStepper>(&mut self, stepper: S) -> W {
+        stepper.step(&mut self.s)
     }
 
     /// One Bernoulli(thr / 2^64) draw for each lane of `need` (0 elsewhere): lane l hits iff
@@ -86,7 +112,7 @@ impl Rng4 {
     /// below thr. Stops once every needed lane is decided, or when thr has no one bit left (the
     /// undecided lanes then have U >= thr); draws no word when no lane needs one.
     #[inline(always)]
-    pub(crate) fn bernoulli<const AVX: bool>(&mut self, thr: u64, need: W) -> W {
+    pub(crate) fn bernoulli<S: StreamStepper>(&mut self, stepper: S, thr: u64, need: W) -> W {
         let mut hit = ZERO;
         if thr == 0 || !any(need) {
             return hit;
@@ -94,7 +120,7 @@ impl Rng4 {
         let mut undecided = need;
         let mut bit = 63u32;
         loop {
-            let r = self.next::<AVX>();
+            let r = self.next(stepper);
             if (thr >> bit) & 1 == 1 {
                 hit = or(hit, andnot(undecided, r));
                 undecided = and(undecided, r);
@@ -109,23 +135,25 @@ impl Rng4 {
     }
 }
 
-/// [`Rng4::next`] on AVX2 registers.
-///
-/// # Safety
-/// The CPU must support AVX2.
+/// [`xoshiro256pp_x4`] on AVX2 registers, for [`Rng4`]'s transposed state. Compiled for AVX2:
+/// calling it is `unsafe` except from AVX2 code.
 #[cfg(target_arch = "x86_64")]
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn next_avx2(s: &mut [W; 4]) -> W {
+fn next_avx2(s: &mut [W; 4]) -> W {
     use std::arch::x86_64::{__m256i, _mm256_loadu_si256, _mm256_storeu_si256};
-    let mut v: [__m256i; 4] =
-        std::array::from_fn(|k| _mm256_loadu_si256(s[k].as_ptr().cast::<__m256i>()));
+    let mut v: [__m256i; 4] = std::array::from_fn(|k| {
+        // SAFETY: `s[k]` holds the 4 u64s (32 bytes) read; the unaligned load takes any address.
+        unsafe { _mm256_loadu_si256(s[k].as_ptr().cast::<__m256i>()) }
+    });
     let out = crate::rng::xoshiro256pp_x4_avx2(&mut v);
     for (k, w) in s.iter_mut().enumerate() {
-        _mm256_storeu_si256(w.as_mut_ptr().cast::<__m256i>(), v[k]);
+        // SAFETY: `w` holds the 4 u64s (32 bytes) written; the unaligned store takes any address.
+        unsafe { _mm256_storeu_si256(w.as_mut_ptr().cast::<__m256i>(), v[k]) };
     }
     let mut r = ZERO;
-    _mm256_storeu_si256(r.as_mut_ptr().cast::<__m256i>(), out);
+    // SAFETY: `r` holds the 4 u64s (32 bytes) written; the unaligned store takes any address.
+    unsafe { _mm256_storeu_si256(r.as_mut_ptr().cast::<__m256i>(), out) };
     r
 }
 

@@ -220,14 +220,13 @@ fn group_portable<const O: bool, const M: bool, const A: bool, const P: bool>(
     group_body!(lanes4, a, O, M, A, P)
 }
 
-/// The grouped kernel on AVX2 registers.
-///
-/// # Safety
-/// The CPU must support AVX2; `a.p.max_tau < a.table.len()`; `a.p.mask` holds `a.p.mask_len`
-/// bits.
+/// The grouped kernel on AVX2 registers. Compiled for AVX2, so calling it is `unsafe` except
+/// from AVX2 code; [`group_rows`] calls it with an [`Isa::Avx2`], whose token proves the CPU's
+/// support. It reads the tables only at clamped indices, so no argument makes it read out of
+/// bounds.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn group_avx2<const O: bool, const M: bool, const A: bool, const P: bool>(
+fn group_avx2<const O: bool, const M: bool, const A: bool, const P: bool>(
     a: GroupArgs,
 ) -> SharedCursor {
     use super::lanes4_avx2 as simd;
@@ -270,10 +269,12 @@ pub(in crate::montecarlo) fn group_rows<
             start,
         };
         end = match isa {
-            // SAFETY: `detect_isa` chose Avx2 after checking the CPU at run time; `tables` was
-            // checked by `KernelTables::new`.
             #[cfg(target_arch = "x86_64")]
-            Isa::Avx2 => unsafe { group_avx2::<O, M, A, P>(args) },
+            Isa::Avx2(_token) => {
+                // SAFETY: the Avx2 token exists only where `Avx2::detect` found AVX2 on this
+                // CPU, the one feature `group_avx2` is compiled for.
+                unsafe { group_avx2::<O, M, A, P>(args) }
+            }
             _ => group_portable::<O, M, A, P>(args),
         };
     }

@@ -183,7 +183,7 @@ fn speed() {
     for (family, isa, bitslice) in families {
         let kernels = Kernels { isa, bitslice };
         for (name, cfg) in &cases {
-            let label = format!("{family}{isa:?} {name}");
+            let label = format!("{family}{} {name}", isa.name());
             let keep = match filter.strip_prefix('^') {
                 Some(head) => label.starts_with(head),
                 None => label.contains(filter.as_str()),
@@ -223,7 +223,7 @@ fn speed() {
                 j = r.j;
             }
             println!(
-                "{family}{isa:?} {name}: {best:.3e} steps/s wall, {best_cpu:.3e} per CPU-s ({threads} threads; j = {j:.6})"
+                "{label}: {best:.3e} steps/s wall, {best_cpu:.3e} per CPU-s ({threads} threads; j = {j:.6})"
             );
         }
     }
