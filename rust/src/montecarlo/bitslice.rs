@@ -16,8 +16,8 @@
 //! zero count is exactly z0 (the one place it matters); a draw for all 256 lanes takes about
 //! log2(256) + 1.3 words for a generic p, one word for p = 1/2, none when no lane needs it.
 //!
-//! Tr P_k summed over runs is Σ_j tr[j] n_j(k), with the histogram n_j(k) of τ read off the
-//! thermometer by popcounts. Each run's own sum Σ_k tr[τ_k] (for the standard error) needs each
+//! Tr P_k summed over runs is Σ_j `tr[j]` n_j(k), with the histogram n_j(k) of τ read off the
+//! thermometer by popcounts. Each run's own sum Σ_k `tr[τ_k]` (for the standard error) needs each
 //! run's count of steps with τ ≥ j: per-lane counters fed with the thermometer words through
 //! carry-save adders (Harley-Seal, 16 steps at a time).
 //!
@@ -57,8 +57,11 @@ const CANCEL_STEPS: usize = 1 << 14;
 /// The plan of a bit-sliced run (built by the driver when the experiment fits).
 #[derive(Debug, Clone)]
 pub(super) struct BsPlan {
+    /// The channel's Bernoulli threshold ⌊λ 2^64⌋ on low power.
     pub(super) lam_thr: u64,
+    /// The threshold ⌊μ 2^64⌋ of the z0-bit memory.
     pub(super) mu_thr: u64,
+    /// The short memory length z0 (clamped to the depth + 1).
     pub(super) z0: usize,
     /// Memory length when there is no μ draw.
     pub(super) fixed_memory: usize,
@@ -66,12 +69,14 @@ pub(super) struct BsPlan {
     pub(super) pattern: Vec<u8>,
     /// Runs of ones of the blocking mask, as intervals of the counter.
     pub(super) mask_runs: Vec<Range<u64>>,
+    /// Flag-ACKs per period of the mask (1 without an attacker).
     pub(super) mask_len: u64,
-    /// tr[τ], τ = 0..=depth.
+    /// `tr[τ]`, τ = 0..=depth.
     pub(super) tr: Vec<f64>,
 }
 
 impl BsPlan {
+    /// The largest τ (the thermometer's top level).
     fn depth(&self) -> usize {
         self.tr.len() - 1
     }
@@ -111,22 +116,27 @@ pub(super) fn mask_runs(mask: &[bool]) -> Vec<Range<u64>> {
 
 /// What one block reports.
 pub(super) struct BsOut {
-    /// Σ_k tr[τ_k] of each lane (all RUNS lanes; the caller keeps the active ones).
+    /// Σ_k `tr[τ_k]` of each lane (all RUNS lanes; the caller keeps the active ones).
     pub(super) sum: Vec<f64>,
     /// Flag-ACKs delivered to each lane's sensor (only when recording; else empty).
     pub(super) delivered: Vec<u64>,
     /// Totals over the active lanes.
     pub(super) sent: u64,
+    /// Flags blocked or flipped, over the active lanes.
     pub(super) blocked: u64,
+    /// Active lanes with a flag delivered at the last step.
     pub(super) hi_last: u64,
 }
 
 /// Inputs of one block.
 pub(super) struct BsBlock<'a> {
+    /// The experiment's seed.
     pub(super) seed: u64,
+    /// The block's index: its randomness is SplitMix64 sub-stream (seed, block).
     pub(super) block: u64,
     /// Lanes 0..active are runs; the rest are simulated but not counted.
     pub(super) active: usize,
+    /// Whether to report each lane's delivered flag-ACKs.
     pub(super) record: bool,
     /// Per-step sums over the active lanes are added here (length = horizon).
     pub(super) acc: &'a mut [f64],

@@ -5,10 +5,19 @@ use crate::attack::Attack;
 /// The sensor's power schedule.
 #[derive(Debug, Clone, PartialEq)]
 pub enum McSchedule {
-    /// A 0/1 pattern (1 = high power Δ) repeated periodically; `pattern[0]` must be 1.
-    Offline { pattern: Vec<u8> },
+    /// A fixed pattern repeated periodically (the offline schedule).
+    Offline {
+        /// The power at each step of a period: 1 = high power Δ, 0 = low power δ; `pattern[0]`
+        /// must be 1 (the sensor uses Δ at k = 1).
+        pattern: Vec<u8>,
+    },
     /// The ACK-based online schedule: z0-bit memory with probability `mu`, else z0+1 bits.
-    Online { z0: u64, mu: f64 },
+    Online {
+        /// The short memory length, >= 1: a flag-ACK after z0 zero ACKs in a row.
+        z0: u64,
+        /// The probability μ of using the z0-bit memory at a step, in [0, 1] (Model note 2).
+        mu: f64,
+    },
 }
 
 /// What each run tracks.

@@ -32,13 +32,18 @@ fn run_tile(plan: &Plan, isa: Isa, tile: &mut Tile, cancel: &AtomicBool) -> Resu
 /// Count, mean and sum of squared deviations (Welford; Chan et al. to merge).
 #[derive(Debug, Clone, Copy, Default)]
 struct Moments {
+    /// Count.
     n: u64,
+    /// Mean.
     mean: f64,
+    /// Sum of squared deviations from the mean.
     m2: f64,
+    /// Whether a non-finite value was pushed (the standard error is then infinite).
     nonfinite: bool,
 }
 
 impl Moments {
+    /// Adds one value.
     fn push(&mut self, x: f64) {
         if !x.is_finite() {
             self.nonfinite = true;
@@ -49,6 +54,7 @@ impl Moments {
         self.m2 += d * (x - self.mean);
     }
 
+    /// Adds another set of values' moments.
     fn merge(&mut self, o: &Moments) {
         self.nonfinite |= o.nonfinite;
         if o.n == 0 {
@@ -67,12 +73,19 @@ impl Moments {
     }
 }
 
+/// What one block of runs reports.
 struct BlockOut {
+    /// Per-step sums over the block's runs.
     acc: Vec<f64>,
+    /// The moments of the runs' time averages.
     moments: Moments,
+    /// Flag-ACKs sent.
     sent: u128,
+    /// Flag-ACKs blocked or flipped.
     blocked: u128,
+    /// High-power steps.
     high: u128,
+    /// Runs in the block.
     runs: u64,
     /// Delivered flag-ACKs of each run of the block, in run order (empty unless recording).
     delivered: Vec<u64>,
@@ -82,7 +95,9 @@ struct BlockOut {
 /// take the plans that fit it (tests turn it off to exercise the lane kernels on every plan).
 #[derive(Debug, Clone, Copy)]
 pub(super) struct Kernels {
+    /// The lane kernel, and the bit-sliced kernel's build (AVX2 if this holds its token).
     pub(super) isa: Isa,
+    /// Whether the bit-sliced kernel takes the plans that fit it.
     pub(super) bitslice: bool,
 }
 
@@ -134,6 +149,7 @@ fn run_bitslice_block(
     })
 }
 
+/// One block on the kernel that fits the plan.
 fn run_block(plan: &Plan, kernels: Kernels, block: u64, cancel: &AtomicBool) -> Result<BlockOut> {
     let isa = kernels.isa;
     if let (Some(bs), true) = (&plan.bitslice, kernels.bitslice) {
@@ -237,6 +253,7 @@ pub fn simulate(
     simulate_with(sys, cfg, cancel, progress, kernels)
 }
 
+/// [`simulate`] on the given kernels (tests pick them).
 pub(super) fn simulate_with(
     sys: &LinearSystem,
     cfg: &McConfig,

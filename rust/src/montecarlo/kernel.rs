@@ -11,9 +11,7 @@ use crate::error::{Error, Result};
 use crate::rng::Xoshiro256pp;
 
 mod grouped;
-/// Four-lane operations on plain arrays.
 mod lanes4;
-/// The same operations on AVX2 registers.
 #[cfg(target_arch = "x86_64")]
 mod lanes4_avx2;
 mod proto;

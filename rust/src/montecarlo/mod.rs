@@ -63,17 +63,22 @@
 //! (longest run of blocked flags) flags in a row are blocked. Table lookups clamp their index to
 //! the bound anyway, so the tables are never read out of range.
 //!
+//! The AVX2 kernels are compiled for AVX2 (`#[target_feature]`) and reached only through an
+//! `Avx2` token (`cpu.rs`), which exists only where the CPU has been found to support AVX2.
+//!
 //! # Layout
 //!
 //! `config` holds the public types ([`McConfig`], [`McResult`] and their parts); `plan` the
-//! validation and the precomputed `Plan`; `driver` the block driver behind [`simulate`];
-//! `bitslice` the bit-sliced covariance kernel (its word operations in `bitslice/words.rs`);
-//! `kernel` the lock-step protocol and the covariance kernels (with the four-lane operation sets
-//! in `kernel/lanes4.rs` and `kernel/lanes4_avx2.rs`); `state` the state-mode model and kernel;
-//! `tests` the unit tests (`tests/perf.rs`: the ignored throughput and memory checks).
+//! validation and the precomputed `Plan`; `driver` the block driver behind [`simulate`]; `cpu`
+//! the AVX2 token; `bitslice` the bit-sliced covariance kernel (its body in `bitslice/body.rs`,
+//! its word operations in `bitslice/words.rs`); `kernel` the lane kernels' interface, with the
+//! lanes' protocol state (`kernel/proto.rs`), the grouped kernel (`kernel/grouped.rs`, over the
+//! four-lane operation sets `kernel/lanes4.rs` and `kernel/lanes4_avx2.rs`) and the test-only
+//! reference kernel (`kernel/reference.rs`); `state` the state-mode model and kernel; `tests` the
+//! unit tests (`tests/perf.rs`: the ignored throughput and memory checks).
 
 /// Which protocol paths an experiment's kernel needs; each kernel is compiled once per
-/// combination (const generics), and [`by_flags!`] picks the one matching these run-time values.
+/// combination (const generics), and `by_flags!` picks the one matching these run-time values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 struct KernelFlags {
     /// The online schedule (a detector sends flag-ACKs); else the offline pattern.
@@ -138,5 +143,7 @@ const MAX_RECORDED_RUNS: u64 = 1 << 28;
 const CHUNK_STEPS: usize = 1 << 16;
 /// Bits of a 64-bit random word used per Bernoulli draw.
 const SLICE_BITS: u32 = 16;
+/// Bernoulli draws per 64-bit random word.
 const SLICES_PER_WORD: u32 = 64 / SLICE_BITS;
+/// The low [`SLICE_BITS`] bits of a word.
 const SLICE_MASK: u64 = (1 << SLICE_BITS) - 1;

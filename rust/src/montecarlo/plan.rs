@@ -101,7 +101,7 @@ fn check_pattern(pattern: &[u8]) -> Result<()> {
     Ok(())
 }
 
-/// tr[τ] = Tr h^τ(P̄) for τ = 0..=bound, refused if any is NaN.
+/// `tr[τ]` = Tr h^τ(P̄) for τ = 0..=bound, refused if any is NaN.
 fn trace_table(sys: &LinearSystem, bound: u64) -> Result<Vec<f64>> {
     let tr = sys.h_traces(bound as usize);
     if tr.len() != bound as usize + 1 || tr.iter().any(|t| t.is_nan()) {
@@ -112,28 +112,41 @@ fn trace_table(sys: &LinearSystem, bound: u64) -> Result<Vec<f64>> {
 
 /// The validated, precomputed experiment shared by all blocks.
 pub(super) struct Plan {
+    /// Steps per run.
     pub(super) horizon: usize,
+    /// Number of runs.
     pub(super) runs: u64,
+    /// The experiment's seed.
     pub(super) seed: u64,
     /// Keep each run's delivered flag-ACK count ([`McConfig::record_runs`]).
     pub(super) record_runs: bool,
+    /// The channel's Bernoulli threshold ⌊λ 2^64⌋ on low power.
     pub(super) lam_thr: u64,
+    /// The online schedule (else the offline pattern).
     pub(super) online: bool,
+    /// A μ draw every step (0 < μ < 1).
     pub(super) mu_draw: bool,
+    /// The threshold ⌊μ 2^64⌋ of the z0-bit memory.
     pub(super) mu_thr: u64,
+    /// The short memory length z0.
     z0: u64,
     /// Memory length when there is no draw: z0 for μ = 1, z0+1 for μ = 0.
     pub(super) fixed_memory: u64,
+    /// The offline pattern (empty online).
     pub(super) pattern: Vec<u8>,
     /// Ones among the first `horizon` steps of the offline pattern.
     pub(super) offline_high: u64,
+    /// The blocking mask packed into words (`None`: no attacker).
     pub(super) mask: Option<Vec<u64>>,
+    /// Flag-ACKs per period of the mask (1 without an attacker).
     pub(super) mask_len: u64,
+    /// How the flag-ACK travels.
     pub(super) protocol: Protocol,
     /// Largest reachable τ, capped by the horizon.
     pub(super) bound: u64,
-    /// tr[τ] = Tr h^τ(P̄), τ = 0..=bound (covariance mode; empty in state mode).
+    /// `tr[τ]` = Tr h^τ(P̄), τ = 0..=bound (covariance mode; empty in state mode).
     pub(super) tr: Vec<f64>,
+    /// The error recursions (state mode; `None` in covariance mode).
     pub(super) state: Option<StateModel>,
     /// The bit-sliced covariance kernel's plan, when the plan fits it (shallow τ bound, short
     /// memory, few runs of ones in the mask); else the lane kernels run.

@@ -16,9 +16,13 @@ use crate::rng::{NormalSampler, Xoshiro256pp};
 /// Row-major dense matrices of the error recursions, with noise factors Lq (n × rq, Q = Lq Lq'),
 /// Lr (m × m) and Lp (n × rp, P̄ = Lp Lp').
 pub(super) struct StateModel {
+    /// States.
     n: usize,
+    /// Outputs.
     m: usize,
+    /// Columns of Lq (the rank of Q).
     rq: usize,
+    /// Columns of Lp (the rank of P̄).
     rp: usize,
     /// A.
     a: Vec<f64>,
@@ -28,7 +32,9 @@ pub(super) struct StateModel {
     g: Vec<f64>,
     /// K Lr.
     h: Vec<f64>,
+    /// Lq.
     lq: Vec<f64>,
+    /// Lp.
     lp: Vec<f64>,
 }
 
@@ -62,6 +68,7 @@ fn psd_factor(arg: &str, x: &DMatrix<f64>) -> Result<(Vec<f64>, usize)> {
     Ok((l, rank))
 }
 
+/// The entries of `x`, row by row.
 fn row_major(x: &DMatrix<f64>) -> Vec<f64> {
     let mut out = Vec::with_capacity(x.nrows() * x.ncols());
     for i in 0..x.nrows() {
@@ -72,11 +79,13 @@ fn row_major(x: &DMatrix<f64>) -> Vec<f64> {
     out
 }
 
+/// A rows × cols matrix from its entries row by row.
 fn from_row_major(rows: usize, cols: usize, v: &[f64]) -> DMatrix<f64> {
     DMatrix::from_row_slice(rows, cols, v)
 }
 
 impl StateModel {
+    /// The recursions of `sys`'s steady-state Kalman filter.
     pub(super) fn new(sys: &LinearSystem) -> Result<Self> {
         let (a, c, q, r, pbar) = (sys.a(), sys.c(), sys.q(), sys.r(), sys.pbar());
         let n = sys.n();
@@ -119,6 +128,7 @@ impl StateModel {
     }
 }
 
+/// The dot product of `a` and `b`.
 #[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
@@ -126,19 +136,26 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// The state-mode coefficients of a scalar system (n = m = 1).
 struct Scalar {
+    /// A.
     a: f64,
+    /// (1 - KC) A.
     f: f64,
+    /// (1 - KC) Lq.
     g: f64,
+    /// K Lr.
     h: f64,
+    /// Lq.
     lq: f64,
 }
 
 /// The error recursions of a tile's lanes: the sensor's errors e^s and the remote errors e,
 /// lane-major, with scratch space for one lane's step.
 struct TileErrors<'m> {
+    /// The recursions' matrices.
     model: &'m StateModel,
     /// The same recursions on plain numbers when n = m = 1.
     scalar: Option<Scalar>,
+    /// The normal sampler.
     gauss: NormalSampler,
     /// The sensor's errors e^s, lane l at `l * n..(l + 1) * n`.
     es: Vec<f64>,

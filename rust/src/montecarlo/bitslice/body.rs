@@ -24,7 +24,7 @@ fn pick<const D: usize>(levels: &[W; D], sel: &[bool; D]) -> W {
 }
 
 /// Advances a thermometer by one step: all levels clear where `reset`, else every lane moves
-/// one level up (levels[j] holds "≥ j + 1").
+/// one level up (`levels[j]` holds "≥ j + 1").
 #[inline(always)]
 fn step_up<const D: usize>(levels: &mut [W; D], reset: W) {
     for j in (1..D).rev() {
@@ -44,6 +44,7 @@ struct MemoryLevels<const D: usize> {
 }
 
 impl<const D: usize> MemoryLevels<D> {
+    /// The selectors of `p`'s memory lengths.
     fn new(p: &BsPlan) -> Self {
         let sel = |len: usize| -> [bool; D] { std::array::from_fn(|j| j + 1 == len) };
         MemoryLevels {
@@ -134,7 +135,7 @@ fn attack<const PROTO_A: bool, const B: usize>(
     delivery
 }
 
-/// This step's Σ over the active lanes of tr[τ], from the histogram n[j] = #(τ ≥ j) read off
+/// This step's Σ over the active lanes of `tr[τ]`, from the histogram `n[j]` = #(τ ≥ j) read off
 /// the thermometer; empty bins add nothing (a select, not a branch, and no 0 · inf). Also
 /// stores the thermometer in slot `s` of the per-lane counters' batch.
 #[inline(always)]
@@ -176,6 +177,7 @@ struct Tallies<const D: usize> {
 }
 
 impl<const D: usize> Tallies<D> {
+    /// All counts zero.
     fn new() -> Self {
         Tallies {
             levels: [LaneCounter::NEW; D],
@@ -205,7 +207,7 @@ impl<const D: usize> Tallies<D> {
         }
     }
 
-    /// Each lane's Σ_k tr[τ_k] over `horizon` steps from its histogram, in the order of the
+    /// Each lane's Σ_k `tr[τ_k]` over `horizon` steps from its histogram, in the order of the
     /// per-step sums.
     fn lane_sums(&self, horizon: usize, tr: &[f64; MAX_DEPTH + 1]) -> Vec<f64> {
         let mut above = [horizon as u64; RUNS];
@@ -246,7 +248,7 @@ fn pattern_step(pattern: &[u8], pos: &mut usize) -> W {
     splat(g == 1)
 }
 
-/// The kernel on thermometers of D levels (levels[j] holds "≥ j + 1") and B counter planes;
+/// The kernel on thermometers of D levels (`levels[j]` holds "≥ j + 1") and B counter planes;
 /// `stepper` steps the random streams (on AVX2 registers, or portably).
 #[inline(always)]
 pub(super) fn body<

@@ -14,17 +14,22 @@ pub(crate) const BATCH: usize = 16;
 
 /// One bit per run.
 pub(crate) type W = [u64; WORDS];
+/// No run.
 pub(crate) const ZERO: W = [0; WORDS];
+/// Every run.
 pub(crate) const ONES: W = [u64::MAX; WORDS];
 
+/// a & b
 #[inline(always)]
 pub(crate) fn and(a: W, b: W) -> W {
     std::array::from_fn(|i| a[i] & b[i])
 }
+/// a | b
 #[inline(always)]
 pub(crate) fn or(a: W, b: W) -> W {
     std::array::from_fn(|i| a[i] | b[i])
 }
+/// a ^ b
 #[inline(always)]
 pub(crate) fn xor(a: W, b: W) -> W {
     std::array::from_fn(|i| a[i] ^ b[i])
@@ -34,14 +39,17 @@ pub(crate) fn xor(a: W, b: W) -> W {
 pub(crate) fn andnot(a: W, b: W) -> W {
     std::array::from_fn(|i| a[i] & !b[i])
 }
+/// !a
 #[inline(always)]
 pub(crate) fn not(a: W) -> W {
     std::array::from_fn(|i| !a[i])
 }
+/// Whether any run's bit is set.
 #[inline(always)]
 pub(crate) fn any(a: W) -> bool {
     (a[0] | a[1] | a[2] | a[3]) != 0
 }
+/// The number of runs whose bit is set.
 #[inline(always)]
 pub(crate) fn popcount(a: W) -> u32 {
     a.iter().map(|w| w.count_ones()).sum()
@@ -214,15 +222,20 @@ fn csa(a: W, b: W, c: W) -> (W, W) {
 /// batches of 16 words, the sixteens rippled into a vertical binary counter.
 #[derive(Clone, Copy)]
 pub(crate) struct LaneCounter {
+    /// Bit 0 of each lane's count within the current sixteen.
     ones: W,
+    /// Bit 1.
     twos: W,
+    /// Bit 2.
     fours: W,
+    /// Bit 3.
     eights: W,
     /// Planes of the count of sixteens (2^32 · 16 exceeds any horizon).
     sixteens: [W; 32],
 }
 
 impl LaneCounter {
+    /// All counts zero.
     pub(crate) const NEW: LaneCounter = LaneCounter {
         ones: ZERO,
         twos: ZERO,
@@ -231,6 +244,7 @@ impl LaneCounter {
         sixteens: [ZERO; 32],
     };
 
+    /// Adds the bits of a batch of [`BATCH`] words to each lane's count.
     #[inline(always)]
     pub(crate) fn add16(&mut self, d: &[W; BATCH]) {
         let (twos_a, ones) = csa(self.ones, d[0], d[1]);

@@ -17,7 +17,9 @@ pub(in crate::montecarlo) const SUB_STEPS: usize = 128;
 /// the mask has `mask_len >= 1` bits. [`group_rows`] takes only checked tables.
 #[derive(Clone, Copy)]
 pub(in crate::montecarlo) struct KernelTables<'a> {
+    /// The kernel's constants.
     params: Params<'a>,
+    /// The per-τ values written to the rows.
     table: &'a [f64],
 }
 
@@ -42,7 +44,9 @@ impl<'a> KernelTables<'a> {
 /// The slice counter and the offline pattern position, which every lane of a tile shares.
 #[derive(Clone, Copy)]
 struct SharedCursor {
+    /// Slices left in the lanes' random words.
     slices_left: u32,
+    /// The next step's position in the offline pattern.
     pattern_pos: usize,
 }
 
@@ -60,14 +64,21 @@ struct GroupConsts<'a, U> {
 
 /// What a grouped kernel needs for lanes 4g..4g+4 over one sub-chunk.
 struct GroupArgs<'a, 'p> {
+    /// The tile's protocol state.
     proto: &'a mut Proto,
+    /// Each lane's running total.
     sum: &'a mut [f64; LANES],
     /// The group g (lanes 4g..4g+4).
     group: usize,
+    /// The kernel's constants.
     p: &'a Params<'p>,
+    /// The per-τ values written to the rows (checked by [`KernelTables::new`]).
     table: &'a [f64],
+    /// The lanes' side streams (ties of the Bernoulli slices).
     side: &'a mut [Xoshiro256pp; LANES],
+    /// All ones for runs, 0 for padding lanes.
     active: &'a Lanes,
+    /// One row per step: each lane's value after the step.
     rows: &'a mut [[f64; LANES]],
     /// Where the tile's shared cursor stood at the start of the sub-chunk.
     start: SharedCursor,

@@ -1,11 +1,16 @@
+//! Four-lane operations on plain arrays: the portable instantiation of the grouped kernel.
+
 use super::grouped::resolve_ties4;
 use super::Proto;
 use crate::montecarlo::{SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
 use crate::rng::Xoshiro256pp;
 
+/// Four u64 lanes.
 pub(super) type U = [u64; 4];
+/// Four f64 lanes.
 pub(super) type F = [f64; 4];
 
+/// `[f(0), f(1), f(2), f(3)]` for the body `|i| f(i)`.
 macro_rules! map {
     (|$i:ident| $e:expr) => {{
         let mut out = [Default::default(); 4];
@@ -16,42 +21,52 @@ macro_rules! map {
     }};
 }
 
+/// `x` in every lane.
 #[inline(always)]
 pub(super) fn splat(x: u64) -> U {
     [x; 4]
 }
+/// Loads `a[0..4]`.
 #[inline(always)]
 pub(super) fn load(a: &[u64]) -> U {
     [a[0], a[1], a[2], a[3]]
 }
+/// Stores `v` to `a[0..4]`.
 #[inline(always)]
 pub(super) fn store(a: &mut [u64], v: U) {
     a[..4].copy_from_slice(&v);
 }
+/// Loads `a[0..4]`.
 #[inline(always)]
 pub(super) fn fload(a: &[f64]) -> F {
     [a[0], a[1], a[2], a[3]]
 }
+/// Stores `v` to `a[0..4]`.
 #[inline(always)]
 pub(super) fn fstore(a: &mut [f64], v: F) {
     a[..4].copy_from_slice(&v);
 }
+/// Wrapping `a + b`.
 #[inline(always)]
 pub(super) fn add(a: U, b: U) -> U {
     map!(|i| a[i].wrapping_add(b[i]))
 }
+/// Wrapping `a - b`.
 #[inline(always)]
 pub(super) fn sub(a: U, b: U) -> U {
     map!(|i| a[i].wrapping_sub(b[i]))
 }
+/// `a & b`.
 #[inline(always)]
 pub(super) fn and(a: U, b: U) -> U {
     map!(|i| a[i] & b[i])
 }
+/// `a | b`.
 #[inline(always)]
 pub(super) fn or(a: U, b: U) -> U {
     map!(|i| a[i] | b[i])
 }
+/// `a ^ b`.
 #[inline(always)]
 pub(super) fn xor(a: U, b: U) -> U {
     map!(|i| a[i] ^ b[i])
@@ -61,6 +76,7 @@ pub(super) fn xor(a: U, b: U) -> U {
 pub(super) fn andnot(a: U, b: U) -> U {
     map!(|i| !a[i] & b[i])
 }
+/// `a >> N`.
 #[inline(always)]
 pub(super) fn shr<const N: u32>(a: U) -> U {
     map!(|i| a[i] >> N)
@@ -74,6 +90,7 @@ pub(super) fn gt(a: U, b: U) -> U {
         0
     })
 }
+/// a == b as a lane mask.
 #[inline(always)]
 pub(super) fn eq(a: U, b: U) -> U {
     map!(|i| if a[i] == b[i] { u64::MAX } else { 0 })
@@ -83,6 +100,7 @@ pub(super) fn eq(a: U, b: U) -> U {
 pub(super) fn blend(m: U, t: U, f: U) -> U {
     map!(|i| if m[i] != 0 { t[i] } else { f[i] })
 }
+/// `a + b`.
 #[inline(always)]
 pub(super) fn fadd(a: F, b: F) -> F {
     map!(|i| a[i] + b[i])
@@ -101,10 +119,14 @@ pub(super) fn mask_bit(mask: &[u64], c: U) -> U {
         .map_or(0, |w| (w >> (c[i] & 63)) & 1))
 }
 
+/// A value table prepared for [`lookup`].
 pub(super) struct Table<'a> {
+    /// The values.
     tr: &'a [f64],
+    /// The last index read.
     last: usize,
 }
+/// Prepares `tr` for lookups up to index `last` (clamped to the table).
 #[inline(always)]
 pub(super) fn table(tr: &[f64], last: u64) -> Table<'_> {
     Table {
@@ -124,12 +146,16 @@ pub(super) fn lookup(t: &Table, idx: U) -> F {
 
 /// Four xoshiro256++ lanes and their current word of 16-bit slices.
 pub(super) struct Stream {
+    /// The xoshiro256++ state words, each over the four lanes.
     s: [U; 4],
+    /// Each lane's current random word.
     slice_word: U,
+    /// Slices left in `slice_word`.
     slices_left: u32,
 }
 
 impl Stream {
+    /// The streams of lanes lo..lo+4 of `p`, with `slices_left` slices left in their words.
     #[inline(always)]
     pub(super) fn load(p: &Proto, lo: usize, slices_left: u32) -> Self {
         Stream {
@@ -143,6 +169,7 @@ impl Stream {
             slices_left,
         }
     }
+    /// Writes the streams back to lanes lo..lo+4 of `p`; returns the slices left.
     #[inline(always)]
     pub(super) fn store(&self, p: &mut Proto, lo: usize) -> u32 {
         store(&mut p.s0[lo..], self.s[0]);

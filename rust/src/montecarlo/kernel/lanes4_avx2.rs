@@ -1,4 +1,4 @@
-//! The four-lane operations of [`lanes4`](super::lanes4) on AVX2 registers.
+//! The four-lane operations of `lanes4` on AVX2 registers.
 //!
 //! Every function is compiled for AVX2 (`#[target_feature]`): other AVX2 functions call them
 //! safely, and code elsewhere only through an `unsafe` call justified by an
@@ -154,13 +154,17 @@ pub(super) fn mask_bit(mask: &[u64], c: U) -> U {
 /// How `lookup` reads the table: in-register permutes for up to 8 entries, else a gather.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Kind {
+    /// At most 4 entries: one permute.
     Perm4,
+    /// At most 8 entries: two permutes and a blend.
     Perm8,
+    /// More: a gather from memory.
     Gather,
 }
 
 /// A value table prepared for [`lookup`].
 pub(super) struct Table<'a> {
+    /// How [`lookup`] reads it.
     kind: Kind,
     /// Entries 0..4 (clamped to `last`), for the permutes.
     lo: U,
@@ -227,11 +231,17 @@ pub(super) fn lookup(t: &Table, tau: U) -> F {
 
 /// Four xoshiro256++ lanes and their current word of 16-bit slices.
 pub(super) struct Stream {
+    /// xoshiro256++ state word 0 of the four lanes.
     s0: U,
+    /// State word 1.
     s1: U,
+    /// State word 2.
     s2: U,
+    /// State word 3.
     s3: U,
+    /// Each lane's current random word.
     slice_word: U,
+    /// Slices left in `slice_word`.
     slices_left: u32,
 }
 
