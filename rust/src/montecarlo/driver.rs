@@ -253,6 +253,81 @@ pub fn simulate(
     simulate_with(sys, cfg, cancel, progress, kernels)
 }
 
+/// The sums over the blocks folded so far; blocks are folded in block order, so the results
+/// do not depend on which thread ran which block.
+struct Totals {
+    /// Per-step sums over the runs.
+    trace: Vec<f64>,
+    /// The moments of the runs' time averages.
+    moments: Moments,
+    /// Flag-ACKs sent.
+    sent: u128,
+    /// Flag-ACKs blocked or flipped.
+    blocked: u128,
+    /// High-power steps.
+    high: u128,
+    /// Delivered flag-ACKs per run, in run order (recording only; at most 2^28 runs, checked).
+    delivered: Vec<u64>,
+}
+
+impl Totals {
+    /// Nothing folded yet.
+    fn new(plan: &Plan) -> Self {
+        Totals {
+            trace: vec![0.0f64; plan.horizon],
+            moments: Moments::default(),
+            sent: 0,
+            blocked: 0,
+            high: 0,
+            delivered: if plan.record_runs {
+                Vec::with_capacity(plan.runs as usize)
+            } else {
+                Vec::new()
+            },
+        }
+    }
+
+    /// Folds in the next block.
+    fn add(&mut self, out: &BlockOut) {
+        for (t, a) in self.trace.iter_mut().zip(&out.acc) {
+            *t += a;
+        }
+        self.moments.merge(&out.moments);
+        self.sent += out.sent;
+        self.blocked += out.blocked;
+        self.high += out.high;
+        self.delivered.extend_from_slice(&out.delivered);
+    }
+
+    /// The averages over all of `plan`'s runs.
+    fn result(self, plan: &Plan) -> McResult {
+        let runs = plan.runs as f64;
+        let mean_trace: Vec<f64> = self.trace.iter().map(|t| t / runs).collect();
+        let j_k = running_means(&mean_trace);
+        let j = j_k.last().copied().unwrap_or(f64::NAN);
+        let m = &self.moments;
+        let stderr = if m.n < 2 || m.nonfinite || !j.is_finite() {
+            f64::INFINITY
+        } else {
+            let var = (m.m2 / (m.n - 1) as f64).max(0.0);
+            (var / runs).sqrt()
+        };
+        let steps = runs * plan.horizon as f64;
+        McResult {
+            mean_trace,
+            j_k,
+            j,
+            stderr,
+            high_power_rate: self.high as f64 / steps,
+            flags_sent: self.sent as f64 / steps,
+            flags_blocked: self.blocked as f64 / steps,
+            runs: plan.runs,
+            steps: plan.horizon as u64,
+            delivered_per_run: self.delivered,
+        }
+    }
+}
+
 /// [`simulate`] on the given kernels (tests pick them).
 pub(super) fn simulate_with(
     sys: &LinearSystem,
@@ -272,16 +347,7 @@ pub(super) fn simulate_with(
     // than one per thread (each buffer at most 1 GiB).
     let buffer_bytes = plan.horizon as u64 * 8;
     let wave = ((64u64 << 20) / buffer_bytes.max(1)).clamp(threads, 64 * threads);
-
-    let mut total = vec![0.0f64; plan.horizon];
-    let mut moments = Moments::default();
-    let (mut sent, mut blocked, mut high) = (0u128, 0u128, 0u128);
-    // Blocks are folded in block order, so entry i is run i (at most 2^28 runs, checked).
-    let mut delivered = if plan.record_runs {
-        Vec::with_capacity(plan.runs as usize)
-    } else {
-        Vec::new()
-    };
+    let mut totals = Totals::new(&plan);
     let mut start = 0u64;
     while start < blocks {
         if cancel.load(Ordering::Relaxed) {
@@ -297,40 +363,9 @@ pub(super) fn simulate_with(
             })
             .collect();
         for out in outs {
-            let out = out?;
-            for (t, a) in total.iter_mut().zip(&out.acc) {
-                *t += a;
-            }
-            moments.merge(&out.moments);
-            sent += out.sent;
-            blocked += out.blocked;
-            high += out.high;
-            delivered.extend_from_slice(&out.delivered);
+            totals.add(&out?);
         }
         start = end;
     }
-
-    let runs = plan.runs as f64;
-    let mean_trace: Vec<f64> = total.iter().map(|t| t / runs).collect();
-    let j_k = running_means(&mean_trace);
-    let j = j_k.last().copied().unwrap_or(f64::NAN);
-    let stderr = if moments.n < 2 || moments.nonfinite || !j.is_finite() {
-        f64::INFINITY
-    } else {
-        let var = (moments.m2 / (moments.n - 1) as f64).max(0.0);
-        (var / runs).sqrt()
-    };
-    let steps = runs * plan.horizon as f64;
-    Ok(McResult {
-        mean_trace,
-        j_k,
-        j,
-        stderr,
-        high_power_rate: high as f64 / steps,
-        flags_sent: sent as f64 / steps,
-        flags_blocked: blocked as f64 / steps,
-        runs: plan.runs,
-        steps: plan.horizon as u64,
-        delivered_per_run: delivered,
-    })
+    Ok(totals.result(&plan))
 }

@@ -207,6 +207,30 @@ impl<const D: usize> Tallies<D> {
         }
     }
 
+    /// The block's report after `horizon` steps, with totals over the `active` lanes; each
+    /// lane's delivered flag-ACKs if `record`.
+    fn report(
+        &self,
+        horizon: usize,
+        tr: &[f64; MAX_DEPTH + 1],
+        active: W,
+        record: bool,
+        hi_last: u64,
+    ) -> BsOut {
+        BsOut {
+            sum: self.lane_sums(horizon, tr),
+            delivered: if record {
+                let (sent, lost) = (self.sent.counts(), self.lost.counts());
+                (0..RUNS).map(|l| sent[l] - lost[l]).collect()
+            } else {
+                Vec::new()
+            },
+            sent: self.sent.total(active),
+            blocked: self.lost.total(active),
+            hi_last,
+        }
+    }
+
     /// Each lane's Σ_k `tr[τ_k]` over `horizon` steps from its histogram, in the order of the
     /// per-step sums.
     fn lane_sums(&self, horizon: usize, tr: &[f64; MAX_DEPTH + 1]) -> Vec<f64> {
@@ -324,20 +348,10 @@ pub(super) fn body<
         }
         tallies.add_batch::<ONLINE, ATTACK>(steps.len());
     }
-    Ok(BsOut {
-        sum: tallies.lane_sums(horizon, &tr),
-        delivered: if b.record {
-            let (sent, lost) = (tallies.sent.counts(), tallies.lost.counts());
-            (0..RUNS).map(|l| sent[l] - lost[l]).collect()
-        } else {
-            Vec::new()
-        },
-        sent: tallies.sent.total(active),
-        blocked: tallies.lost.total(active),
-        hi_last: if ONLINE {
-            u64::from(popcount(and(hi, active)))
-        } else {
-            0
-        },
-    })
+    let hi_last = if ONLINE {
+        u64::from(popcount(and(hi, active)))
+    } else {
+        0
+    };
+    Ok(tallies.report(horizon, &tr, active, b.record, hi_last))
 }
