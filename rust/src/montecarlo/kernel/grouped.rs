@@ -127,8 +127,6 @@ macro_rules! group_body {
         let p = $a.p;
         let proto = &mut *$a.proto;
         let side = &mut $a.side[lo..lo + 4];
-        // Memory lengths minus one, so "zeros >= L" is the single compare "zeros > L - 1"
-        // (z0 >= 1, and the plan keeps every length below 2^63).
         let k = GroupConsts {
             one: $o::splat(1),
             mask_len: $o::splat(p.mask_len),
@@ -137,6 +135,8 @@ macro_rules! group_body {
         };
         let lam_top = $o::splat(p.lam.top);
         let mu_top = $o::splat(p.mu.top);
+        // Memory lengths minus one, so "zeros >= L" is the single compare "zeros > L - 1"
+        // (z0 >= 1, and the plan keeps every length below 2^63).
         let z0 = $o::splat(p.z0);
         let fixed_memory_m1 = $o::splat(p.fixed_memory.saturating_sub(1));
         let table = $o::table($a.table, p.max_tau);
