@@ -30,9 +30,10 @@ use nalgebra::DMatrix;
 use fakeack::chain::{self, AttackChain};
 use fakeack::montecarlo::{self, McConfig, McSchedule, Mode, Protocol};
 use fakeack::pattern::Segments;
+use fakeack::rng::SplitMix64;
 use fakeack::spectral::spectral_radius;
 use fakeack::LinearSystem;
-use fakeack::{stationary, sweep};
+use fakeack::{stationary, sweep, Attack};
 
 /// The paper's example: A = 1.2, C = 0.7, Q = R = 0.8, λ = 0.5.
 const LAM: f64 = 0.5;
@@ -42,28 +43,48 @@ fn paper_system() -> LinearSystem {
     LinearSystem::new(m(1.2), m(0.7), m(0.8), m(0.8)).expect("paper system")
 }
 
-/// (z0, r, t) with |S| = r(r+1)z0/2 + t(z0+1) within 1 of the target; half the states in the
+/// An attack chain of the benchmark: memory z0, r blocked of every t flag-ACKs.
+struct ChainSize {
+    /// The target number of states |S|.
+    label: &'static str,
+    z0: u64,
+    r: u64,
+    t: u64,
+}
+
+/// Chains with |S| = r(r+1)z0/2 + t(z0+1) within 1 of the target; half the states in the
 /// growing levels σ <= r, half in the short ones (same table as benches/compare.py).
-const CHAINS: [(&str, u64, u64, u64); 3] = [
-    ("1e4", 2, 70, 1_677),
-    ("1e6", 2, 700, 169_767),
-    ("1e7", 2, 2_236, 1_666_023),
+const CHAINS: [ChainSize; 3] = [
+    ChainSize {
+        label: "1e4",
+        z0: 2,
+        r: 70,
+        t: 1_677,
+    },
+    ChainSize {
+        label: "1e6",
+        z0: 2,
+        r: 700,
+        t: 169_767,
+    },
+    ChainSize {
+        label: "1e7",
+        z0: 2,
+        r: 2_236,
+        t: 1_666_023,
+    },
 ];
 
-/// SplitMix64: a tiny deterministic generator so the benchmark needs no extra crate.
-struct Rng(u64);
+/// Pseudo-random test matrices from the crate's own SplitMix64 (no extra crate).
+struct Rng(SplitMix64);
 
 impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
+    fn new(seed: u64) -> Self {
+        Rng(SplitMix64::new(seed))
     }
     /// Uniform in (0, 1).
     fn uniform(&mut self) -> f64 {
-        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        ((self.0.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
     }
     /// Standard normal (Box-Muller).
     fn normal(&mut self) -> f64 {
@@ -78,7 +99,7 @@ impl Rng {
 /// A fixed pseudo-random system of dimension n: A scaled to spectral radius 1.05 (mildly unstable,
 /// like the paper's), C with max(1, n/2) rows, Q = BB'/n + 0.1 I, R = DD'/m + 0.2 I.
 fn random_system(n: usize) -> (DMatrix<f64>, DMatrix<f64>, DMatrix<f64>, DMatrix<f64>) {
-    let mut rng = Rng(0x5EED_0000 + n as u64);
+    let mut rng = Rng::new(0x5EED_0000 + n as u64);
     let m = (n / 2).max(1);
     let mut a = rng.matrix(n, n);
     let rho = spectral_radius(&a).expect("eigenvalues");
@@ -131,7 +152,7 @@ fn bench_stationary(c: &mut Criterion) {
         .warm_up_time(Duration::from_millis(500))
         .measurement_time(Duration::from_secs(3))
         .sampling_mode(SamplingMode::Flat);
-    for (label, z0, r, t) in CHAINS {
+    for ChainSize { label, z0, r, t } in CHAINS {
         let ch = AttackChain::new(LAM, z0, r, t).unwrap();
         let n = chain::num_states(z0, r, t);
         g.throughput(Throughput::Elements(n as u64));
@@ -181,7 +202,7 @@ fn mc_config(mode: Mode, runs: u64, horizon: usize) -> McConfig {
     McConfig {
         lam: LAM,
         schedule: McSchedule::Online { z0: 2, mu: 1.0 },
-        attack: Some(vec![true, false, false, false, false]),
+        attack: Some(Attack::periodic(1, 5).expect("r < t")),
         mode,
         protocol: Protocol::B,
         horizon,

@@ -47,6 +47,7 @@
 //! package `fakeack` (a private module that only converts types).
 
 #![warn(missing_docs)]
+#![deny(unsafe_op_in_unsafe_fn)]
 
 pub mod analysis;
 pub mod attack;

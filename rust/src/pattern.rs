@@ -248,7 +248,9 @@ impl Segments {
             let (mut head, mut tail, mut partial) = (0.0, 0.0, 0.0);
             // head = Σ_{σ=1..r} v_σ; tail = Σ_{k<r} (r-k) v_k; partial = Σ_{k<r} v_k.
             for r in 0..=rmax {
-                out.push(head + one_minus_u * tail - r as f64 * v[0]);
+                // r W_0 is 0 for r = 0 even when W_0 is beyond the double range (no 0 * inf).
+                let shift = if r == 0 { 0.0 } else { r as f64 * v[0] };
+                out.push(head + one_minus_u * tail - shift);
                 partial += v[r];
                 tail += partial;
                 if r < rmax {
@@ -263,7 +265,7 @@ impl Segments {
     /// J(r, t) for "block the first r of every t flag-ACKs".
     pub fn j_first_r(&self, r: usize, t: usize) -> f64 {
         let (a, b) = self.first_r_offsets(r);
-        (t as f64 * self.w[0] + a[r]) / (t as f64 * self.m[0] + b[r])
+        first_r_j(t as f64, self.w[0], a[r], self.m[0], b[r])
     }
 
     /// The numerator N(r, t) = t W_0 + a_r alone (with masses as `w`, the normaliser D).
@@ -290,6 +292,16 @@ fn scale_by_block_factor(v: &mut [f64], walk: &Walk) {
             (x.ln() + f).exp() // ε^k alone would overflow; the product does not
         };
     }
+}
+
+/// J(r, t) = (t W_0 + a_r) / (t M_0 + b_r). The numerator is a sum of non-negative terms written
+/// with a subtraction (a_r holds - r W_0), so a NaN there means inf - inf: W beyond the double
+/// range, J = +inf.
+#[inline]
+pub fn first_r_j(t: f64, w0: f64, a_r: f64, m0: f64, b_r: f64) -> f64 {
+    let num = t * w0 + a_r;
+    let num = if num.is_nan() { f64::INFINITY } else { num };
+    num / (t * m0 + b_r)
 }
 
 /// Segment sums Σ_i C(k,i) μ^(k-i) (1-μ)^i Z_k(k z0 + i) of a per-τ weight `v`, where
@@ -484,6 +496,13 @@ mod tests {
             assert_eq!(seg.j_first_r(2, 3), f64::INFINITY);
             // Segment 0 never reaches the overflow: J without attack stays finite.
             assert!(seg.j_first_r(0, 3).is_finite());
+        }
+        // Segment 0 itself beyond the double range: J is +inf, not 0 * inf or inf - inf.
+        let w = vec![f64::INFINITY; 8];
+        for mu in [1.0, 0.0] {
+            let seg = Segments::new(&w, 0.5, OnlineDesign::new(1, mu).unwrap(), 2).unwrap();
+            assert_eq!(seg.j_first_r(0, 1), f64::INFINITY);
+            assert_eq!(seg.j_first_r(2, 5), f64::INFINITY);
         }
     }
 

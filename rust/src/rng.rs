@@ -21,6 +21,7 @@ pub fn mix64(mut z: u64) -> u64 {
 /// SplitMix64 (Steele, Lea and Flood), the generator recommended for seeding xoshiro.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SplitMix64 {
+    /// The counter, advanced by the golden gamma each step.
     state: u64,
 }
 
@@ -39,6 +40,7 @@ impl SplitMix64 {
         SplitMix64::new(mix64(mix64(seed) ^ mix64(index.wrapping_add(GOLDEN_GAMMA))))
     }
 
+    /// The next output.
     #[inline]
     pub fn next_u64(&mut self) -> u64 {
         self.state = self.state.wrapping_add(GOLDEN_GAMMA);
@@ -72,13 +74,12 @@ pub fn xoshiro256pp_x4(s: &mut [[u64; 4]; 4]) -> [u64; 4] {
 /// generators. Returns the four outputs.
 ///
 /// # Safety
-/// The CPU must support AVX2.
+/// Compiled for AVX2: safe to call from other functions compiled for AVX2; elsewhere the call is
+/// `unsafe`, and the CPU must support AVX2.
 #[cfg(target_arch = "x86_64")]
 #[inline]
 #[target_feature(enable = "avx2")]
-pub unsafe fn xoshiro256pp_x4_avx2(
-    s: &mut [std::arch::x86_64::__m256i; 4],
-) -> std::arch::x86_64::__m256i {
+pub fn xoshiro256pp_x4_avx2(s: &mut [std::arch::x86_64::__m256i; 4]) -> std::arch::x86_64::__m256i {
     use std::arch::x86_64::*;
     let [s0, s1, s2, s3] = *s;
     let sum = _mm256_add_epi64(s0, s3);
@@ -97,6 +98,7 @@ pub unsafe fn xoshiro256pp_x4_avx2(
 /// xoshiro256++ 1.0 (Blackman and Vigna): period 2^256 - 1, passes BigCrush in all bits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Xoshiro256pp {
+    /// The four state words (never all zero).
     s: [u64; 4],
 }
 
@@ -119,6 +121,7 @@ impl Xoshiro256pp {
         self.s
     }
 
+    /// The next output: 64 uniform bits.
     #[inline]
     pub fn next_u64(&mut self) -> u64 {
         let s = &mut self.s;
@@ -175,12 +178,14 @@ pub fn bernoulli_threshold(p: f64) -> u64 {
 // ---------------------------------------------------------------------------------------------
 // Ziggurat (Marsaglia and Tsang 2000, in Doornik's 2005 "ZIGNOR" form with 128 layers).
 
+/// Layers of the ziggurat.
 const ZIG_LAYERS: usize = 128;
 /// Start of the right tail.
 const ZIG_R: f64 = 3.442_619_855_899;
 /// Area of each layer (and of the bottom layer together with the tail).
 const ZIG_V: f64 = 9.912_563_035_262_17e-3;
 
+/// The ziggurat's tables.
 struct Ziggurat {
     /// Right edges x_0 > x_1 = R > ... > x_127 > x_128 = 0; x_0 = V / f(R) is the bottom layer's
     /// pseudo-width.
@@ -189,6 +194,7 @@ struct Ziggurat {
     ratio: [f64; ZIG_LAYERS],
 }
 
+/// The tables, built on first use.
 fn ziggurat() -> &'static Ziggurat {
     static TABLES: OnceLock<Ziggurat> = OnceLock::new();
     TABLES.get_or_init(|| {
@@ -229,10 +235,12 @@ impl Default for NormalSampler {
 }
 
 impl NormalSampler {
+    /// A sampler on the ziggurat's tables (built once per process).
     pub fn new() -> Self {
         NormalSampler(ziggurat())
     }
 
+    /// A standard normal N(0, 1) drawn from `rng`, as [`normal`] draws it.
     #[inline(always)]
     pub fn draw(self, rng: &mut Xoshiro256pp) -> f64 {
         match ziggurat_attempt(self.0, rng) {

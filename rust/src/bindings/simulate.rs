@@ -128,9 +128,7 @@ pub(crate) fn simulate<'py>(
     let cfg = McConfig {
         lam,
         schedule: schedule_of(kind, p, q, z0, mu)?.to_monte_carlo()?,
-        attack: attack_of(attack)
-            .map(|a| a.blocking_mask().map(|m| m.into_owned()))
-            .transpose()?,
+        attack: attack_of(attack),
         mode: parse_mode(mode)?,
         protocol: parse_protocol(protocol)?,
         horizon,

@@ -16,8 +16,8 @@
 //! zero count is exactly z0 (the one place it matters); a draw for all 256 lanes takes about
 //! log2(256) + 1.3 words for a generic p, one word for p = 1/2, none when no lane needs it.
 //!
-//! Tr P_k summed over runs is Σ_j tr[j] n_j(k), with the histogram n_j(k) of τ read off the
-//! thermometer by popcounts. Each run's own sum Σ_k tr[τ_k] (for the standard error) needs each
+//! Tr P_k summed over runs is Σ_j `tr[j]` n_j(k), with the histogram n_j(k) of τ read off the
+//! thermometer by popcounts. Each run's own sum Σ_k `tr[τ_k]` (for the standard error) needs each
 //! run's count of steps with τ ≥ j: per-lane counters fed with the thermometer words through
 //! carry-save adders (Harley-Seal, 16 steps at a time).
 //!
@@ -32,17 +32,19 @@
 //! in the same order, hence are bit-identical. The random streams differ from the lane kernels',
 //! so for one seed the two families give different (equally distributed) samples.
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::ops::Range;
+use std::sync::atomic::AtomicBool;
 
-use crate::error::{Error, Result};
+use super::cpu::Avx2;
+use super::KernelFlags;
+use crate::error::Result;
 
+mod body;
 mod words;
 
+use body::body;
+use words::Portable;
 pub(super) use words::RUNS;
-use words::{
-    and, andnot, equals, increment, less_than, not, or, popcount, splat, xor, LaneCounter, Rng4,
-    BATCH, ONES, W, ZERO,
-};
 
 /// Deepest thermometer (largest τ bound, and largest memory z0 + 1 under attack) the kernel
 /// takes; deeper plans use the lane kernels, whose cost does not grow with the bound.
@@ -55,28 +57,37 @@ const CANCEL_STEPS: usize = 1 << 14;
 /// The plan of a bit-sliced run (built by the driver when the experiment fits).
 #[derive(Debug, Clone)]
 pub(super) struct BsPlan {
+    /// The channel's Bernoulli threshold ⌊λ 2^64⌋ on low power.
     pub(super) lam_thr: u64,
+    /// The threshold ⌊μ 2^64⌋ of the z0-bit memory.
     pub(super) mu_thr: u64,
+    /// The short memory length z0 (clamped to the depth + 1).
     pub(super) z0: usize,
     /// Memory length when there is no μ draw.
-    pub(super) l_fixed: usize,
+    pub(super) fixed_memory: usize,
     /// Offline pattern (1 = high power); unused online.
     pub(super) pattern: Vec<u8>,
-    /// Runs of ones of the blocking mask, as half-open intervals of the counter.
-    pub(super) mask_runs: Vec<(u64, u64)>,
+    /// Runs of ones of the blocking mask, as intervals of the counter.
+    pub(super) mask_runs: Vec<Range<u64>>,
+    /// Flag-ACKs per period of the mask (1 without an attacker).
     pub(super) mask_len: u64,
-    /// tr[τ], τ = 0..=depth.
+    /// `tr[τ]`, τ = 0..=depth.
     pub(super) tr: Vec<f64>,
 }
 
 impl BsPlan {
+    /// The largest τ (the thermometer's top level).
     fn depth(&self) -> usize {
         self.tr.len() - 1
     }
 
     /// Thermometer levels needed: τ up to the depth, and the zero count up to the memory.
     fn levels(&self, mu_draw: bool, attack: bool) -> usize {
-        let memory = if mu_draw { self.z0 + 1 } else { self.l_fixed };
+        let memory = if mu_draw {
+            self.z0 + 1
+        } else {
+            self.fixed_memory
+        };
         self.depth().max(if attack { memory } else { 0 }).max(1)
     }
 
@@ -86,15 +97,15 @@ impl BsPlan {
     }
 }
 
-/// Runs of ones of `mask` as half-open index intervals.
-pub(super) fn mask_runs(mask: &[bool]) -> Vec<(u64, u64)> {
+/// Runs of ones of `mask` as index intervals.
+pub(super) fn mask_runs(mask: &[bool]) -> Vec<Range<u64>> {
     let mut runs = Vec::new();
     let mut start = None;
     for (i, &b) in mask.iter().chain(std::iter::once(&false)).enumerate() {
         match (b, start) {
             (true, None) => start = Some(i as u64),
             (false, Some(s)) => {
-                runs.push((s, i as u64));
+                runs.push(s..i as u64);
                 start = None;
             }
             _ => {}
@@ -105,241 +116,47 @@ pub(super) fn mask_runs(mask: &[bool]) -> Vec<(u64, u64)> {
 
 /// What one block reports.
 pub(super) struct BsOut {
-    /// Σ_k tr[τ_k] of each lane (all RUNS lanes; the caller keeps the active ones).
+    /// Σ_k `tr[τ_k]` of each lane (all RUNS lanes; the caller keeps the active ones).
     pub(super) sum: Vec<f64>,
     /// Flag-ACKs delivered to each lane's sensor (only when recording; else empty).
     pub(super) delivered: Vec<u64>,
     /// Totals over the active lanes.
     pub(super) sent: u64,
+    /// Flags blocked or flipped, over the active lanes.
     pub(super) blocked: u64,
+    /// Active lanes with a flag delivered at the last step.
     pub(super) hi_last: u64,
 }
 
 /// Inputs of one block.
 pub(super) struct BsBlock<'a> {
+    /// The experiment's seed.
     pub(super) seed: u64,
+    /// The block's index: its randomness is SplitMix64 sub-stream (seed, block).
     pub(super) block: u64,
     /// Lanes 0..active are runs; the rest are simulated but not counted.
     pub(super) active: usize,
+    /// Whether to report each lane's delivered flag-ACKs.
     pub(super) record: bool,
     /// Per-step sums over the active lanes are added here (length = horizon).
     pub(super) acc: &'a mut [f64],
 }
 
-/// OR of the levels whose selector is set (a level picked by a run-time index without
-/// indexing, so the levels can live in registers).
-#[inline(always)]
-fn pick<const D: usize>(levels: &[W; D], sel: &[bool; D]) -> W {
-    let mut out = ZERO;
-    for j in 0..D {
-        out = or(out, and(levels[j], splat(sel[j])));
-    }
-    out
-}
-
-/// The kernel on thermometers of D levels (levels[j] holds "≥ j + 1") and B counter planes;
-/// `AVX` steps the random streams in AVX2 registers.
-#[inline(always)]
-fn body<
-    const ONLINE: bool,
-    const MU_DRAW: bool,
-    const ATTACK: bool,
-    const PROTO_A: bool,
-    const D: usize,
-    const B: usize,
-    const AVX: bool,
->(
-    p: &BsPlan,
-    b: &mut BsBlock,
-    cancel: &AtomicBool,
-) -> Result<BsOut> {
-    let bits = p.counter_bits();
-    if p.levels(MU_DRAW, ATTACK) > D || (ATTACK && bits > B) || b.active > RUNS {
-        return Err(Error::invalid(
-            "sys",
-            "plan too large for the bit-sliced kernel",
-        ));
-    }
-    let active: W = std::array::from_fn(|w| match b.active.saturating_sub(64 * w) {
-        0 => 0,
-        n if n >= 64 => u64::MAX,
-        n => (1u64 << n) - 1,
-    });
-    // tr padded with zeros to D + 1 levels (the extra levels are never occupied).
-    let tr: [f64; MAX_DEPTH + 1] = std::array::from_fn(|j| p.tr.get(j).copied().unwrap_or(0.0));
-    // Selectors of the memory lengths: level L - 1 holds "≥ L".
-    let sel = |len: usize| -> [bool; D] { std::array::from_fn(|j| j + 1 == len) };
-    let (sel_fixed, sel_short, sel_long) = (sel(p.l_fixed), sel(p.z0), sel(p.z0 + 1));
-    let mut rng = Rng4::for_block(b.seed, b.block);
-    let mut therm = [ZERO; D];
-    let mut zeros = [ZERO; D];
-    let mut sigma = [ZERO; B];
-    let mut hi = ONES; // k = 1 is a high-power step
-    let mut counters = [LaneCounter::NEW; D];
-    let (mut sent_c, mut lost_c) = (LaneCounter::NEW, LaneCounter::NEW);
-    let mut batch = [[ZERO; BATCH]; D];
-    let (mut sent_b, mut lost_b) = ([ZERO; BATCH], [ZERO; BATCH]);
-    let mut pat = 0usize;
-    let horizon = b.acc.len();
-    for (k0, steps) in b.acc.chunks_mut(BATCH).enumerate() {
-        if (k0 * BATCH) % CANCEL_STEPS == 0 && cancel.load(Ordering::Relaxed) {
-            return Err(Error::Interrupted);
-        }
-        for (s, acc) in steps.iter_mut().enumerate() {
-            let high = if ONLINE {
-                hi
-            } else {
-                let g = p.pattern[pat];
-                pat = if pat + 1 == p.pattern.len() {
-                    0
-                } else {
-                    pat + 1
-                };
-                splat(g == 1)
-            };
-            // Only low-power packets need the channel's draw.
-            let arrive = or(high, rng.bernoulli::<AVX>(p.lam_thr, not(high)));
-            // τ' = 0 on arrival, else τ + 1 (never beyond the plan's bound <= D).
-            for j in (1..D).rev() {
-                therm[j] = andnot(therm[j - 1], arrive);
-            }
-            therm[0] = not(arrive);
-            // Histogram of τ over the active lanes from n[j] = #(τ >= j); empty bins add
-            // nothing (a select, not a branch, and no 0 · inf).
-            let mut above = b.active as u32;
-            let mut v = 0.0;
-            for j in 0..D {
-                let n = popcount(and(therm[j], active));
-                let x = tr[j] * f64::from(above - n);
-                v += if above != n { x } else { 0.0 };
-                above = n;
-                batch[j][s] = therm[j];
-            }
-            let x = tr[D] * f64::from(above);
-            *acc += v + if above != 0 { x } else { 0.0 };
-            if !ONLINE {
-                continue;
-            }
-            // The detector flags where the zero count reaches the memory: z0 bits (`short`,
-            // drawn only where the count is exactly z0, the one place it matters) or z0 + 1
-            // with a μ draw, else the fixed length.
-            let mut reached = |t: &[W; D]| -> W {
-                if MU_DRAW {
-                    let (long, at_z0) = (pick(t, &sel_long), pick(t, &sel_short));
-                    let short = rng.bernoulli::<AVX>(p.mu_thr, andnot(at_z0, long));
-                    or(long, and(at_z0, short))
-                } else {
-                    pick(t, &sel_fixed)
-                }
-            };
-            let (flag, lost);
-            if ATTACK {
-                for j in (1..D).rev() {
-                    zeros[j] = andnot(zeros[j - 1], arrive);
-                }
-                zeros[0] = not(arrive);
-                flag = reached(&zeros);
-                for z in zeros.iter_mut() {
-                    *z = andnot(*z, flag);
-                }
-                let mut blocking = ZERO;
-                for &(lo, end) in &p.mask_runs {
-                    let below_end = less_than(&sigma, end);
-                    let run = if lo == 0 {
-                        below_end
-                    } else {
-                        andnot(below_end, less_than(&sigma, lo))
-                    };
-                    blocking = or(blocking, run);
-                }
-                if PROTO_A {
-                    // One bit every step; the attacker flips 1-bits to 0.
-                    let bit = flag;
-                    lost = and(bit, blocking);
-                    hi = xor(bit, lost);
-                    increment(&mut sigma, bit);
-                } else {
-                    // A flag packet only when a flag is due; the attacker drops it.
-                    lost = and(flag, blocking);
-                    hi = andnot(flag, lost);
-                    increment(&mut sigma, flag);
-                }
-                // All B planes take part (B >= bits; the planes above `bits` stay zero), so
-                // these loops unroll.
-                let wrap = equals(&sigma, p.mask_len);
-                for plane in sigma.iter_mut() {
-                    *plane = andnot(*plane, wrap);
-                }
-            } else {
-                // Without an attacker every flag is delivered and followed by an arrival, so
-                // the zero count equals τ whenever it matters.
-                flag = reached(&therm);
-                lost = ZERO;
-                hi = flag;
-            }
-            sent_b[s] = flag;
-            lost_b[s] = lost;
-        }
-        // A partial last batch counts zeros in its unused slots.
-        let n = steps.len();
-        for (c, d) in counters.iter_mut().zip(batch.iter_mut()) {
-            d[n..].fill(ZERO);
-            c.add16(d);
-        }
-        if ONLINE {
-            sent_b[n..].fill(ZERO);
-            sent_c.add16(&sent_b);
-            if ATTACK {
-                lost_b[n..].fill(ZERO);
-                lost_c.add16(&lost_b);
-            }
-        }
-    }
-    // Each lane's Σ_k tr[τ_k] from its histogram, in the order of the per-step sums.
-    let mut above = [horizon as u64; RUNS];
-    let mut sum = vec![0.0; RUNS];
-    for (j, c) in counters.iter().enumerate() {
-        for ((s, a), n) in sum.iter_mut().zip(above.iter_mut()).zip(c.counts()) {
-            let x = tr[j] * (*a - n) as f64;
-            *s += if *a != n { x } else { 0.0 };
-            *a = n;
-        }
-    }
-    for (s, a) in sum.iter_mut().zip(above) {
-        let x = tr[D] * a as f64;
-        *s += if a != 0 { x } else { 0.0 };
-    }
-    Ok(BsOut {
-        sum,
-        delivered: if b.record {
-            let (sent, lost) = (sent_c.counts(), lost_c.counts());
-            (0..RUNS).map(|l| sent[l] - lost[l]).collect()
-        } else {
-            Vec::new()
-        },
-        sent: sent_c.total(active),
-        blocked: lost_c.total(active),
-        hi_last: if ONLINE {
-            u64::from(popcount(and(hi, active)))
-        } else {
-            0
-        },
-    })
-}
-
+/// The portable kernel: every plan on the deepest thermometer and 64 counter planes.
 fn block_portable<const O: bool, const M: bool, const A: bool, const P: bool>(
     p: &BsPlan,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, MAX_DEPTH, 64, false>(p, b, cancel)
+    body::<O, M, A, P, MAX_DEPTH, 64, Portable>(p, b, cancel, Portable)
 }
 
-/// # Safety
-/// The CPU must support AVX2 and POPCNT.
+/// The kernel on AVX2 registers with D thermometer levels and B counter planes. Compiled for
+/// AVX2 and POPCNT, so calling it is `unsafe` except from such code; [`run_block`] calls it
+/// with an [`Avx2`] token and after detecting POPCNT.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,popcnt")]
-unsafe fn block_avx2<
+fn block_avx2<
     const O: bool,
     const M: bool,
     const A: bool,
@@ -347,55 +164,58 @@ unsafe fn block_avx2<
     const D: usize,
     const B: usize,
 >(
+    avx2: Avx2,
     p: &BsPlan,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, D, B, true>(p, b, cancel)
+    body::<O, M, A, P, D, B, Avx2>(p, b, cancel, avx2)
 }
 
 /// The AVX2 kernel for flags ($o, $m, $a, $pa) and counter width $b, specialised on the
-/// smallest thermometer size that holds `levels`.
+/// smallest thermometer size that holds `levels`; `$t` is the [`Avx2`] token.
 #[cfg(target_arch = "x86_64")]
 macro_rules! avx2_by_depth {
-    ($o:expr, $m:expr, $a:expr, $pa:expr, $b:literal, $levels:expr, $p:ident, $blk:ident, $c:ident) => {
-        // SAFETY (all arms): the caller checked AVX2 and POPCNT at run time.
+    ($o:expr, $m:expr, $a:expr, $pa:expr, $b:literal, $levels:expr, $t:ident, $p:ident, $blk:ident, $c:ident) => {
+        // SAFETY: `$t` is a token that only `Avx2::detect` makes, on a CPU with AVX2, and
+        // `run_block` detected POPCNT before using it: the two features `block_avx2` is
+        // compiled for.
         unsafe {
             match $levels {
-                0..=2 => block_avx2::<$o, $m, $a, $pa, 2, $b>($p, $blk, $c),
-                3..=4 => block_avx2::<$o, $m, $a, $pa, 4, $b>($p, $blk, $c),
-                5..=8 => block_avx2::<$o, $m, $a, $pa, 8, $b>($p, $blk, $c),
-                9..=16 => block_avx2::<$o, $m, $a, $pa, 16, $b>($p, $blk, $c),
-                _ => block_avx2::<$o, $m, $a, $pa, 32, $b>($p, $blk, $c),
+                0..=2 => block_avx2::<$o, $m, $a, $pa, 2, $b>($t, $p, $blk, $c),
+                3..=4 => block_avx2::<$o, $m, $a, $pa, 4, $b>($t, $p, $blk, $c),
+                5..=8 => block_avx2::<$o, $m, $a, $pa, 8, $b>($t, $p, $blk, $c),
+                9..=16 => block_avx2::<$o, $m, $a, $pa, 16, $b>($t, $p, $blk, $c),
+                _ => block_avx2::<$o, $m, $a, $pa, 32, $b>($t, $p, $blk, $c),
             }
         }
     };
 }
 
-/// Runs one block with the kernel for (online, μ draw, attack, protocol A), on AVX2 if `avx2`
-/// and the CPU has it.
+/// Runs one block with the kernel for `flags`, on AVX2 if given the token `avx2` and the CPU
+/// also has POPCNT, else on the portable kernel (both give the same results).
 pub(super) fn run_block(
     p: &BsPlan,
-    flags: (bool, bool, bool, bool),
-    avx2: bool,
+    flags: KernelFlags,
+    avx2: Option<Avx2>,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
     #[cfg(target_arch = "x86_64")]
-    if avx2 && is_x86_feature_detected!("avx2") && is_x86_feature_detected!("popcnt") {
-        let levels = p.levels(flags.1, flags.2);
+    if let Some(avx2) = avx2.filter(|_| is_x86_feature_detected!("popcnt")) {
+        let levels = p.levels(flags.mu_draw, flags.attack);
         // Counter planes: none without an attacker, 4 for masks up to 15 long, else 64.
         let wide = p.counter_bits() > 4;
         // Only attacked kernels have counter planes: monomorphise B = 4 and 64 for those alone.
         macro_rules! sized {
             ($o:tt, $m:tt, false, $pa:tt) => {
-                avx2_by_depth!($o, $m, false, $pa, 1, levels, p, b, cancel)
+                avx2_by_depth!($o, $m, false, $pa, 1, levels, avx2, p, b, cancel)
             };
             ($o:tt, $m:tt, true, $pa:tt) => {
                 if wide {
-                    avx2_by_depth!($o, $m, true, $pa, 64, levels, p, b, cancel)
+                    avx2_by_depth!($o, $m, true, $pa, 64, levels, avx2, p, b, cancel)
                 } else {
-                    avx2_by_depth!($o, $m, true, $pa, 4, levels, p, b, cancel)
+                    avx2_by_depth!($o, $m, true, $pa, 4, levels, avx2, p, b, cancel)
                 }
             };
         }

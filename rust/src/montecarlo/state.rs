@@ -6,22 +6,23 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use nalgebra::DMatrix;
 
 use super::kernel::{
-    check_tables, group_rows, lane_sum, Isa, Params, Proto, Tile, TileOut, SUB_STEPS,
+    group_rows, lane_sum, Isa, KernelTables, Params, Proto, Tile, TileOut, SUB_STEPS,
 };
 use super::{CHUNK_STEPS, LANES};
 use crate::error::{Error, Result};
-use crate::rng::NormalSampler;
+use crate::rng::{NormalSampler, Xoshiro256pp};
 use crate::system::LinearSystem;
-
-// ---------------------------------------------------------------------------------------------
-// State-mode model.
 
 /// Row-major dense matrices of the error recursions, with noise factors Lq (n × rq, Q = Lq Lq'),
 /// Lr (m × m) and Lp (n × rp, P̄ = Lp Lp').
 pub(super) struct StateModel {
+    /// States.
     n: usize,
+    /// Outputs.
     m: usize,
+    /// Columns of Lq (the rank of Q).
     rq: usize,
+    /// Columns of Lp (the rank of P̄).
     rp: usize,
     /// A.
     a: Vec<f64>,
@@ -31,7 +32,9 @@ pub(super) struct StateModel {
     g: Vec<f64>,
     /// K Lr.
     h: Vec<f64>,
+    /// Lq.
     lq: Vec<f64>,
+    /// Lp.
     lp: Vec<f64>,
 }
 
@@ -65,6 +68,7 @@ fn psd_factor(arg: &str, x: &DMatrix<f64>) -> Result<(Vec<f64>, usize)> {
     Ok((l, rank))
 }
 
+/// The entries of `x`, row by row.
 fn row_major(x: &DMatrix<f64>) -> Vec<f64> {
     let mut out = Vec::with_capacity(x.nrows() * x.ncols());
     for i in 0..x.nrows() {
@@ -75,11 +79,13 @@ fn row_major(x: &DMatrix<f64>) -> Vec<f64> {
     out
 }
 
+/// A rows × cols matrix from its entries row by row.
 fn from_row_major(rows: usize, cols: usize, v: &[f64]) -> DMatrix<f64> {
     DMatrix::from_row_slice(rows, cols, v)
 }
 
 impl StateModel {
+    /// The recursions of `sys`'s steady-state Kalman filter.
     pub(super) fn new(sys: &LinearSystem) -> Result<Self> {
         let (a, c, q, r, pbar) = (sys.a(), sys.c(), sys.q(), sys.r(), sys.pbar());
         let n = sys.n();
@@ -122,6 +128,7 @@ impl StateModel {
     }
 }
 
+/// The dot product of `a` and `b`.
 #[inline(always)]
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
@@ -129,14 +136,136 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 
 /// The state-mode coefficients of a scalar system (n = m = 1).
 struct Scalar {
+    /// A.
     a: f64,
+    /// (1 - KC) A.
     f: f64,
+    /// (1 - KC) Lq.
     g: f64,
+    /// K Lr.
     h: f64,
+    /// Lq.
     lq: f64,
 }
 
-pub(super) fn state_tile_impl<
+/// The error recursions of a tile's lanes: the sensor's errors e^s and the remote errors e,
+/// lane-major, with scratch space for one lane's step.
+struct TileErrors<'m> {
+    /// The recursions' matrices.
+    model: &'m StateModel,
+    /// The same recursions on plain numbers when n = m = 1.
+    scalar: Option<Scalar>,
+    /// The normal sampler.
+    gauss: NormalSampler,
+    /// The sensor's errors e^s, lane l at `l * n..(l + 1) * n`.
+    es: Vec<f64>,
+    /// The remote errors e, laid out as `es`.
+    e: Vec<f64>,
+    /// One lane's next e^s.
+    es_new: Vec<f64>,
+    /// One lane's next e.
+    e_new: Vec<f64>,
+    /// The process noise draw w = Lq zw.
+    zw: Vec<f64>,
+    /// The measurement noise draw v = Lr zv.
+    zv: Vec<f64>,
+}
+
+impl<'m> TileErrors<'m> {
+    /// The errors at k = 0: e^s_0 ~ N(0, P̄) in every lane (drawn from `noise`), e_0 = 0.
+    fn start(model: &'m StateModel, noise: &mut [Xoshiro256pp; LANES]) -> Self {
+        let (n, m, rq, rp) = (model.n, model.m, model.rq, model.rp);
+        let gauss = NormalSampler::new();
+        let mut es = vec![0.0; LANES * n];
+        let mut zp = vec![0.0; rp];
+        for l in 0..LANES {
+            for z in zp.iter_mut() {
+                *z = gauss.draw(&mut noise[l]);
+            }
+            for (i, out) in es[l * n..(l + 1) * n].iter_mut().enumerate() {
+                *out = dot(&model.lp[i * rp..(i + 1) * rp], &zp);
+            }
+        }
+        let scalar = (n == 1 && m == 1).then(|| Scalar {
+            a: model.a[0],
+            f: model.f[0],
+            g: model.g.first().copied().unwrap_or(0.0),
+            h: model.h[0],
+            lq: model.lq.first().copied().unwrap_or(0.0),
+        });
+        TileErrors {
+            model,
+            scalar,
+            gauss,
+            es,
+            e: vec![0.0; LANES * n],
+            es_new: vec![0.0; n],
+            e_new: vec![0.0; n],
+            zw: vec![0.0; rq],
+            zv: vec![0.0; m],
+        }
+    }
+
+    /// Advances lane l's errors by one step (the packet arrived iff `arrive`), drawing its noise
+    /// from `noise`, and returns ||e_k||².
+    #[inline(always)]
+    fn step(&mut self, l: usize, arrive: bool, noise: &mut Xoshiro256pp) -> f64 {
+        let Some(sc) = &self.scalar else {
+            return self.step_vector(l, arrive, noise);
+        };
+        let zw = if self.model.rq == 1 {
+            self.gauss.draw(noise)
+        } else {
+            0.0
+        };
+        let zv = self.gauss.draw(noise);
+        let esn = sc.f * self.es[l] + sc.g * zw - sc.h * zv;
+        self.es[l] = esn;
+        self.e[l] = if arrive {
+            esn
+        } else {
+            sc.a * self.e[l] + sc.lq * zw
+        };
+        self.e[l] * self.e[l]
+    }
+
+    /// [`TileErrors::step`] for a vector system.
+    #[inline(always)]
+    fn step_vector(&mut self, l: usize, arrive: bool, noise: &mut Xoshiro256pp) -> f64 {
+        let model = self.model;
+        let (n, m, rq) = (model.n, model.m, model.rq);
+        for z in self.zw.iter_mut() {
+            *z = self.gauss.draw(noise);
+        }
+        for z in self.zv.iter_mut() {
+            *z = self.gauss.draw(noise);
+        }
+        let es_l = &mut self.es[l * n..(l + 1) * n];
+        let e_l = &mut self.e[l * n..(l + 1) * n];
+        // e^s_k = (I-KC) A e^s_{k-1} + (I-KC) w_{k-1} - K v_k.
+        for (i, out) in self.es_new.iter_mut().enumerate() {
+            *out = dot(&model.f[i * n..(i + 1) * n], es_l)
+                + dot(&model.g[i * rq..(i + 1) * rq], &self.zw)
+                - dot(&model.h[i * m..(i + 1) * m], &self.zv);
+        }
+        es_l.copy_from_slice(&self.es_new);
+        if arrive {
+            e_l.copy_from_slice(&self.es_new);
+        } else {
+            // e_k = A e_{k-1} + w_{k-1}.
+            for (i, out) in self.e_new.iter_mut().enumerate() {
+                *out = dot(&model.a[i * n..(i + 1) * n], e_l)
+                    + dot(&model.lq[i * rq..(i + 1) * rq], &self.zw);
+            }
+            e_l.copy_from_slice(&self.e_new);
+        }
+        e_l.iter().map(|y| y * y).sum()
+    }
+}
+
+/// Runs one state-mode tile: the protocol on the grouped kernels, a sub-chunk ahead, and each
+/// lane's errors along the arrivals it read off their rows; lane l's per-step value is ||e_k||².
+pub(super) fn state_tile<
     const ONLINE: bool,
     const MU_DRAW: bool,
     const ATTACK: bool,
@@ -148,43 +277,21 @@ pub(super) fn state_tile_impl<
     tile: &mut Tile,
     cancel: &AtomicBool,
 ) -> Result<TileOut> {
-    let (n, m, rq, rp) = (model.n, model.m, model.rq, model.rp);
     let mut proto = Proto::new(&tile.seeds);
     let side = &mut tile.side;
     let noise = &mut tile.noise;
-    let gauss = NormalSampler::new();
-    // Lane-major error vectors.
-    let mut es = vec![0.0; LANES * n];
-    let mut e = vec![0.0; LANES * n];
-    let mut es_new = vec![0.0; n];
-    let mut e_new = vec![0.0; n];
-    let mut zw = vec![0.0; rq];
-    let mut zv = vec![0.0; m];
-    let mut zp = vec![0.0; rp];
-    for l in 0..LANES {
-        // e^s_0 ~ N(0, P̄).
-        for z in zp.iter_mut() {
-            *z = gauss.draw(&mut noise[l]);
-        }
-        for (i, out) in es[l * n..(l + 1) * n].iter_mut().enumerate() {
-            *out = dot(&model.lp[i * rp..(i + 1) * rp], &zp);
-        }
-    }
-    let scalar = (n == 1 && m == 1).then(|| Scalar {
-        a: model.a[0],
-        f: model.f[0],
-        g: model.g.first().copied().unwrap_or(0.0),
-        h: model.h[0],
-        lq: model.lq.first().copied().unwrap_or(0.0),
-    });
+    let mut errors = TileErrors::start(model, noise);
     let mut sum = [0.0f64; LANES];
     // The protocol runs ahead on the grouped covariance kernels, SUB_STEPS steps at a time; the
     // marker table [1, 0, 0, ...] turns their rows into arrival indicators.
-    let marker: Vec<f64> = (0..=p.last).map(|t| f64::from(u8::from(t == 0))).collect();
-    check_tables(p, &marker)?;
+    let marker: Vec<f64> = (0..=p.max_tau)
+        .map(|t| f64::from(u8::from(t == 0)))
+        .collect();
+    let tables = KernelTables::new(p, &marker)?;
     let everyone = [u64::MAX; LANES];
     let mut rows = [[0.0f64; LANES]; SUB_STEPS];
     let mut ignored = [0.0f64; LANES];
+    let n = model.n;
     let chunk_steps = (CHUNK_STEPS / (n * n).max(1)).max(1);
     for chunk in tile
         .acc
@@ -197,8 +304,7 @@ pub(super) fn state_tile_impl<
             let rows = &mut rows[..sub.len()];
             group_rows::<ONLINE, MU_DRAW, ATTACK, PROTO_A>(
                 isa,
-                p,
-                &marker,
+                &tables,
                 &mut proto,
                 &mut ignored,
                 side,
@@ -206,53 +312,9 @@ pub(super) fn state_tile_impl<
                 rows,
             );
             for (acc, row) in sub.iter_mut().zip(rows.iter()) {
-                let arrive: [bool; LANES] = std::array::from_fn(|l| row[l] != 0.0);
                 let mut v = [0.0f64; LANES];
                 for l in 0..LANES {
-                    let x = if let Some(sc) = &scalar {
-                        // n = m = 1: the same recursions on plain numbers.
-                        let zw = if rq == 1 {
-                            gauss.draw(&mut noise[l])
-                        } else {
-                            0.0
-                        };
-                        let zv = gauss.draw(&mut noise[l]);
-                        let esn = sc.f * es[l] + sc.g * zw - sc.h * zv;
-                        es[l] = esn;
-                        e[l] = if arrive[l] {
-                            esn
-                        } else {
-                            sc.a * e[l] + sc.lq * zw
-                        };
-                        e[l] * e[l]
-                    } else {
-                        for z in zw.iter_mut() {
-                            *z = gauss.draw(&mut noise[l]);
-                        }
-                        for z in zv.iter_mut() {
-                            *z = gauss.draw(&mut noise[l]);
-                        }
-                        let es_l = &mut es[l * n..(l + 1) * n];
-                        let e_l = &mut e[l * n..(l + 1) * n];
-                        // e^s_k = (I-KC) A e^s_{k-1} + (I-KC) w_{k-1} - K v_k.
-                        for (i, out) in es_new.iter_mut().enumerate() {
-                            *out = dot(&model.f[i * n..(i + 1) * n], es_l)
-                                + dot(&model.g[i * rq..(i + 1) * rq], &zw)
-                                - dot(&model.h[i * m..(i + 1) * m], &zv);
-                        }
-                        es_l.copy_from_slice(&es_new);
-                        if arrive[l] {
-                            e_l.copy_from_slice(&es_new);
-                        } else {
-                            // e_k = A e_{k-1} + w_{k-1}.
-                            for (i, out) in e_new.iter_mut().enumerate() {
-                                *out = dot(&model.a[i * n..(i + 1) * n], e_l)
-                                    + dot(&model.lq[i * rq..(i + 1) * rq], &zw);
-                            }
-                            e_l.copy_from_slice(&e_new);
-                        }
-                        e_l.iter().map(|y| y * y).sum()
-                    };
+                    let x = errors.step(l, row[l] != 0.0, &mut noise[l]);
                     // Only an overflowed error gives NaN (inf - inf); report it as +inf.
                     let x = if x.is_nan() { f64::INFINITY } else { x };
                     sum[l] += x;
@@ -262,10 +324,5 @@ pub(super) fn state_tile_impl<
             }
         }
     }
-    Ok(TileOut {
-        sum,
-        sent: proto.sent,
-        blocked: proto.blocked,
-        hi_last: proto.hi,
-    })
+    Ok(proto.finish(sum))
 }

@@ -1,7 +1,9 @@
-//! The bit-sliced kernel against a plain per-lane simulation driven by the same random words.
+//! The bit-sliced kernel's word operations (Bernoulli draws, counters, comparisons) against plain
+//! integer arithmetic; `kernel` checks the whole kernel.
 
 use super::words::*;
 use super::*;
+use crate::montecarlo::cpu::Avx2;
 
 /// Bit `l` of a lane word.
 fn lane(w: &W, l: usize) -> bool {
@@ -27,10 +29,10 @@ impl Recorder {
         // Replay: draw with a clone, count how many words it used, then record them.
         let mut probe = Rng4 { s: self.rng.s };
         let before = probe.s;
-        let hit = probe.bernoulli::<false>(thr, need);
+        let hit = probe.bernoulli(Portable, thr, need);
         let mut replay = Rng4 { s: before };
         while replay.s != probe.s {
-            self.words.push(replay.next::<false>());
+            self.words.push(replay.next(Portable));
         }
         self.rng = probe;
         hit
@@ -91,7 +93,7 @@ fn bernoulli_frequency() {
         let mut rng = Rng4::for_block(4, 1);
         let draws = 4000u32;
         let hits: u64 = (0..draws)
-            .map(|_| u64::from(popcount(rng.bernoulli::<false>(thr, ONES))))
+            .map(|_| u64::from(popcount(rng.bernoulli(Portable, thr, ONES))))
             .sum();
         let n = f64::from(draws) * RUNS as f64;
         let se = (p * (1.0 - p) / n).sqrt();
@@ -111,7 +113,7 @@ fn counters_and_comparisons() {
     let mut naive = vec![0u64; RUNS];
     for _ in 0..37 {
         let batch: [W; BATCH] =
-            std::array::from_fn(|_| and(rng.next::<false>(), rng.next::<false>()));
+            std::array::from_fn(|_| and(rng.next(Portable), rng.next(Portable)));
         for w in &batch {
             for (l, n) in naive.iter_mut().enumerate() {
                 *n += u64::from(lane(w, l));
@@ -122,7 +124,7 @@ fn counters_and_comparisons() {
     assert_eq!(c.counts().to_vec(), naive);
     // Binary planes against plain integers.
     for bits in [1usize, 3, 5, 64] {
-        let planes: Vec<W> = (0..bits).map(|_| rng.next::<false>()).collect();
+        let planes: Vec<W> = (0..bits).map(|_| rng.next(Portable)).collect();
         let value =
             |l: usize| -> u64 { (0..bits).map(|i| u64::from(lane(&planes[i], l)) << i).sum() };
         let mut consts: Vec<u64> = vec![0, 1, 2, 5, 31, 32, 33, u64::MAX];
@@ -137,303 +139,9 @@ fn counters_and_comparisons() {
             }
         }
     }
-    assert_eq!(mask_runs(&[true, true, false, true]), vec![(0, 2), (3, 4)]);
+    assert_eq!(mask_runs(&[true, true, false, true]), vec![0..2, 3..4]);
     assert_eq!(mask_runs(&[false, false]), vec![]);
-    assert_eq!(mask_runs(&[true]), vec![(0, 1)]);
+    assert_eq!(mask_runs(&[true]), vec![0..1]);
 }
 
-/// What the plain per-lane simulation reports.
-#[derive(Debug, PartialEq)]
-struct Plain {
-    acc: Vec<f64>,
-    sum: Vec<f64>,
-    delivered: Vec<u64>,
-    sent: u64,
-    blocked: u64,
-    hi_last: u64,
-}
-
-/// Σ_j tr[j] · count_j in increasing j, skipping empty bins (the kernel's summation order).
-fn histogram_sum(tr: &[f64], counts: &[u64]) -> f64 {
-    let mut v = 0.0;
-    for (t, &c) in tr.iter().zip(counts) {
-        if c != 0 {
-            v += t * c as f64;
-        }
-    }
-    v
-}
-
-/// The protocol with one integer state per lane, fed by the same Bernoulli words.
-#[allow(clippy::too_many_arguments)]
-fn plain(
-    p: &BsPlan,
-    online: bool,
-    mu_draw: bool,
-    mask: Option<&[bool]>,
-    proto_a: bool,
-    horizon: usize,
-    active: usize,
-    seed: u64,
-    block: u64,
-) -> Plain {
-    let depth = p.depth();
-    let mut rng = Rng4::for_block(seed, block);
-    let mut tau = vec![0usize; RUNS];
-    let mut zeros = vec![0usize; RUNS];
-    let mut counter = vec![0usize; RUNS];
-    let mut hi = vec![true; RUNS];
-    let mut hist = vec![vec![0u64; depth + 1]; RUNS];
-    let mut out = Plain {
-        acc: Vec::new(),
-        sum: Vec::new(),
-        delivered: vec![0; RUNS],
-        sent: 0,
-        blocked: 0,
-        hi_last: 0,
-    };
-    for k in 0..horizon {
-        let high: Vec<bool> = (0..RUNS)
-            .map(|l| {
-                if online {
-                    hi[l]
-                } else {
-                    p.pattern[k % p.pattern.len()] == 1
-                }
-            })
-            .collect();
-        // Draws only for the low-power lanes.
-        let lucky = rng.bernoulli::<false>(p.lam_thr, from_lanes(|l| !high[l]));
-        let mut step_hist = vec![0u64; depth + 1];
-        let mut arrive = vec![false; RUNS];
-        for l in 0..RUNS {
-            arrive[l] = high[l] || lane(&lucky, l);
-            tau[l] = if arrive[l] {
-                0
-            } else {
-                (tau[l] + 1).min(depth)
-            };
-            hist[l][tau[l]] += 1;
-            if l < active {
-                step_hist[tau[l]] += 1;
-            }
-        }
-        if online {
-            // The zero count the detector compares with its memory.
-            let count: Vec<usize> = (0..RUNS)
-                .map(|l| match mask {
-                    None => tau[l],
-                    Some(_) if arrive[l] => 0,
-                    Some(_) => zeros[l] + 1,
-                })
-                .collect();
-            // μ is drawn only where the count is exactly z0.
-            let short = if mu_draw {
-                rng.bernoulli::<false>(p.mu_thr, from_lanes(|l| count[l] == p.z0))
-            } else {
-                ZERO
-            };
-            for l in 0..RUNS {
-                let memory = match (mu_draw, lane(&short, l)) {
-                    (true, true) => p.z0,
-                    (true, false) => p.z0 + 1,
-                    (false, _) => p.l_fixed,
-                };
-                let counted = u64::from(l < active);
-                let flag = count[l] >= memory;
-                let attacked = match mask {
-                    None => false,
-                    Some(mask) => {
-                        zeros[l] = if flag { 0 } else { count[l] };
-                        let attacked = flag && mask[counter[l]];
-                        if flag {
-                            counter[l] = (counter[l] + 1) % mask.len();
-                        }
-                        attacked
-                    }
-                };
-                hi[l] = if proto_a {
-                    flag ^ attacked
-                } else {
-                    flag && !attacked
-                };
-                out.sent += u64::from(flag) * counted;
-                out.blocked += u64::from(attacked) * counted;
-                out.delivered[l] += u64::from(hi[l]);
-            }
-        }
-        out.acc.push(histogram_sum(&p.tr, &step_hist));
-    }
-    out.hi_last = if online {
-        hi[..active].iter().filter(|&&h| h).count() as u64
-    } else {
-        0
-    };
-    out.sum = hist.iter().map(|h| histogram_sum(&p.tr, h)).collect();
-    out
-}
-
-fn plan(
-    lam: f64,
-    mu: f64,
-    z0: usize,
-    l_fixed: usize,
-    pattern: Vec<u8>,
-    mask: Option<&[bool]>,
-    depth: usize,
-) -> BsPlan {
-    BsPlan {
-        lam_thr: crate::rng::bernoulli_threshold(lam),
-        mu_thr: crate::rng::bernoulli_threshold(mu),
-        z0,
-        l_fixed,
-        pattern,
-        mask_runs: mask.map(mask_runs).unwrap_or_default(),
-        mask_len: mask.map_or(1, |m| m.len() as u64),
-        // Distinct, irregular values so a histogram bin in the wrong place changes the sums.
-        tr: (0..=depth)
-            .map(|j| 1.0 + 0.37 * j as f64 + 0.011 * (j * j) as f64)
-            .collect(),
-    }
-}
-
-/// (plan, online, μ draw, mask, protocol A)
-type Case<'a> = (BsPlan, bool, bool, Option<&'a [bool]>, bool);
-
-#[test]
-fn matches_plain_per_lane_simulation() {
-    let mask_a = [true, false, true, false, false];
-    let mask_b: Vec<bool> = (0..13)
-        .map(|i| i == 0 || i == 12 || (4..7).contains(&i))
-        .collect();
-    // 5 counter bits (the wide specialisation) and four runs of ones.
-    let mask_c: Vec<bool> = (0..19).map(|i| [1, 2, 5, 9, 10, 17].contains(&i)).collect();
-    let mut long_gap = vec![0u8; 21];
-    long_gap[0] = 1;
-    let cases: Vec<Case> = vec![
-        (
-            plan(0.45, 1.0, 2, 2, vec![1], None, 2),
-            true,
-            false,
-            None,
-            false,
-        ),
-        (
-            plan(0.3, 0.4, 2, 3, vec![1], None, 3),
-            true,
-            true,
-            None,
-            false,
-        ),
-        (
-            plan(0.45, 1.0, 2, 2, vec![1], Some(&mask_a), 6),
-            true,
-            false,
-            Some(&mask_a),
-            false,
-        ),
-        (
-            plan(0.45, 1.0, 2, 2, vec![1], Some(&mask_a), 6),
-            true,
-            false,
-            Some(&mask_a),
-            true,
-        ),
-        (
-            plan(0.35, 0.4, 2, 3, vec![1], Some(&mask_b), 12),
-            true,
-            true,
-            Some(&mask_b),
-            false,
-        ),
-        (
-            plan(0.35, 0.6, 1, 2, vec![1], Some(&mask_b), 8),
-            true,
-            true,
-            Some(&mask_b),
-            true,
-        ),
-        (
-            plan(0.5, 1.0, 1, 1, vec![1, 0, 0, 1, 0, 0, 0], None, 3),
-            false,
-            false,
-            None,
-            false,
-        ),
-        (
-            plan(0.2, 1.0, 1, 1, vec![1, 0, 0, 0, 0, 0, 0, 0, 0], None, 8),
-            false,
-            false,
-            None,
-            false,
-        ),
-        (
-            plan(0.4, 1.0, 3, 3, vec![1], Some(&mask_c), 9),
-            true,
-            false,
-            Some(&mask_c),
-            false,
-        ),
-        (
-            plan(0.3, 0.5, 3, 4, vec![1], Some(&mask_c), 12),
-            true,
-            true,
-            Some(&mask_c),
-            true,
-        ),
-        (
-            plan(0.15, 1.0, 1, 1, long_gap.clone(), None, 20),
-            false,
-            false,
-            None,
-            false,
-        ),
-        // A depth below the reachable τ bound (a short horizon caps it) and an all-ones pattern.
-        (
-            plan(0.5, 1.0, 1, 1, vec![1], None, 0),
-            false,
-            false,
-            None,
-            false,
-        ),
-    ];
-    for (i, (p, online, mu_draw, mask, proto_a)) in cases.iter().enumerate() {
-        for (horizon, active, record) in [(333usize, RUNS, true), (40, 77, true), (17, 200, false)]
-        {
-            let mut acc = vec![0.0; horizon];
-            let flags = (*online, *mu_draw, mask.is_some(), *proto_a);
-            let mut b = BsBlock {
-                seed: 3,
-                block: i as u64,
-                active,
-                record,
-                acc: &mut acc,
-            };
-            let got = run_block(p, flags, false, &mut b, &AtomicBool::new(false)).unwrap();
-            let want = plain(
-                p, *online, *mu_draw, *mask, *proto_a, horizon, active, 3, i as u64,
-            );
-            assert_eq!(acc, want.acc, "case {i} horizon {horizon}");
-            assert_eq!(got.sum, want.sum, "case {i}");
-            assert_eq!(
-                (got.sent, got.blocked, got.hi_last),
-                (want.sent, want.blocked, want.hi_last),
-                "case {i}"
-            );
-            if record {
-                assert_eq!(got.delivered, want.delivered, "case {i}");
-            }
-            // The vector build is the same computation.
-            let mut acc2 = vec![0.0; horizon];
-            let mut b = BsBlock {
-                seed: 3,
-                block: i as u64,
-                active,
-                record,
-                acc: &mut acc2,
-            };
-            let again = run_block(p, flags, true, &mut b, &AtomicBool::new(false)).unwrap();
-            assert_eq!((acc2, again.sum), (acc, got.sum), "case {i} avx2");
-        }
-    }
-}
+mod kernel;

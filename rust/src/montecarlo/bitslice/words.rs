@@ -1,6 +1,8 @@
 //! Word-parallel building blocks of the bit-sliced kernel: lane words of 256 runs, their random
 //! source, comparisons of binary counters with constants, and per-lane counters.
 
+#[cfg(target_arch = "x86_64")]
+use crate::montecarlo::cpu::Avx2;
 use crate::rng::{xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
 
 /// Words per block; 64 runs per word.
@@ -12,17 +14,22 @@ pub(crate) const BATCH: usize = 16;
 
 /// One bit per run.
 pub(crate) type W = [u64; WORDS];
+/// No run.
 pub(crate) const ZERO: W = [0; WORDS];
+/// Every run.
 pub(crate) const ONES: W = [u64::MAX; WORDS];
 
+/// a & b
 #[inline(always)]
 pub(crate) fn and(a: W, b: W) -> W {
     std::array::from_fn(|i| a[i] & b[i])
 }
+/// a | b
 #[inline(always)]
 pub(crate) fn or(a: W, b: W) -> W {
     std::array::from_fn(|i| a[i] | b[i])
 }
+/// a ^ b
 #[inline(always)]
 pub(crate) fn xor(a: W, b: W) -> W {
     std::array::from_fn(|i| a[i] ^ b[i])
@@ -32,14 +39,17 @@ pub(crate) fn xor(a: W, b: W) -> W {
 pub(crate) fn andnot(a: W, b: W) -> W {
     std::array::from_fn(|i| a[i] & !b[i])
 }
+/// !a
 #[inline(always)]
 pub(crate) fn not(a: W) -> W {
     std::array::from_fn(|i| !a[i])
 }
+/// Whether any run's bit is set.
 #[inline(always)]
 pub(crate) fn any(a: W) -> bool {
     (a[0] | a[1] | a[2] | a[3]) != 0
 }
+/// The number of runs whose bit is set.
 #[inline(always)]
 pub(crate) fn popcount(a: W) -> u32 {
     a.iter().map(|w| w.count_ones()).sum()
@@ -50,8 +60,39 @@ pub(crate) fn splat(b: bool) -> W {
     [0u64.wrapping_sub(u64::from(b)); WORDS]
 }
 
+/// How [`Rng4`] steps its four streams: [`Portable`] on any CPU, or [`Avx2`] in AVX2 registers
+/// (the token proves the CPU's support). Both give the same words.
+pub(crate) trait StreamStepper: Copy {
+    /// One xoshiro256++ step of the four streams `s` (transposed, as [`xoshiro256pp_x4`] takes
+    /// them); returns their outputs.
+    fn step(self, s: &mut [W; 4]) -> W;
+}
+
+/// Steps the streams with plain u64 arithmetic (LLVM keeps it scalar: AVX2 has no 64-bit
+/// rotate).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Portable;
+
+impl StreamStepper for Portable {
+    #[inline(always)]
+    fn step(self, s: &mut [W; 4]) -> W {
+        xoshiro256pp_x4(s)
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+impl StreamStepper for Avx2 {
+    #[inline(always)]
+    fn step(self, s: &mut [W; 4]) -> W {
+        // SAFETY: `self` is a token that only `Avx2::detect` makes, on a CPU with AVX2, the one
+        // feature `next_avx2` is compiled for.
+        unsafe { next_avx2(s) }
+    }
+}
+
 /// Four xoshiro256++ streams, one per word: bit l of a word is run (64 w + l)'s random bit.
 pub(crate) struct Rng4 {
+    /// The streams' state, transposed: `s[k][w]` is state word k of word w's stream.
     pub(crate) s: [W; 4],
 }
 
@@ -68,17 +109,10 @@ impl Rng4 {
         }
     }
 
-    /// The next word of each stream; `AVX` steps them in AVX2 registers (LLVM keeps the
-    /// portable version scalar: AVX2 has no 64-bit rotate).
+    /// The next word of each stream, stepped by `stepper`.
     #[inline(always)]
-    pub(crate) fn next<const AVX: bool>(&mut self) -> W {
-        #[cfg(target_arch = "x86_64")]
-        if AVX {
-            // SAFETY: kernels with AVX = true are compiled for AVX2 and run only after the
-            // run-time check (see `block_avx2`).
-            return unsafe { next_avx2(&mut self.s) };
-        }
-        xoshiro256pp_x4(&mut self.s)
+    pub(crate) fn next<S: StreamStepper>(&mut self, stepper: S) -> W {
+        stepper.step(&mut self.s)
     }
 
     /// One Bernoulli(thr / 2^64) draw for each lane of `need` (0 elsewhere): lane l hits iff
@@ -86,7 +120,7 @@ impl Rng4 {
     /// below thr. Stops once every needed lane is decided, or when thr has no one bit left (the
     /// undecided lanes then have U >= thr); draws no word when no lane needs one.
     #[inline(always)]
-    pub(crate) fn bernoulli<const AVX: bool>(&mut self, thr: u64, need: W) -> W {
+    pub(crate) fn bernoulli<S: StreamStepper>(&mut self, stepper: S, thr: u64, need: W) -> W {
         let mut hit = ZERO;
         if thr == 0 || !any(need) {
             return hit;
@@ -94,7 +128,7 @@ impl Rng4 {
         let mut undecided = need;
         let mut bit = 63u32;
         loop {
-            let r = self.next::<AVX>();
+            let r = self.next(stepper);
             if (thr >> bit) & 1 == 1 {
                 hit = or(hit, andnot(undecided, r));
                 undecided = and(undecided, r);
@@ -109,23 +143,25 @@ impl Rng4 {
     }
 }
 
-/// [`Rng4::next`] on AVX2 registers.
-///
-/// # Safety
-/// The CPU must support AVX2.
+/// [`xoshiro256pp_x4`] on AVX2 registers, for [`Rng4`]'s transposed state. Compiled for AVX2:
+/// calling it is `unsafe` except from AVX2 code.
 #[cfg(target_arch = "x86_64")]
 #[inline]
 #[target_feature(enable = "avx2")]
-unsafe fn next_avx2(s: &mut [W; 4]) -> W {
+fn next_avx2(s: &mut [W; 4]) -> W {
     use std::arch::x86_64::{__m256i, _mm256_loadu_si256, _mm256_storeu_si256};
-    let mut v: [__m256i; 4] =
-        std::array::from_fn(|k| _mm256_loadu_si256(s[k].as_ptr().cast::<__m256i>()));
+    let mut v: [__m256i; 4] = std::array::from_fn(|k| {
+        // SAFETY: `s[k]` holds the 4 u64s (32 bytes) read; the unaligned load takes any address.
+        unsafe { _mm256_loadu_si256(s[k].as_ptr().cast::<__m256i>()) }
+    });
     let out = crate::rng::xoshiro256pp_x4_avx2(&mut v);
     for (k, w) in s.iter_mut().enumerate() {
-        _mm256_storeu_si256(w.as_mut_ptr().cast::<__m256i>(), v[k]);
+        // SAFETY: `w` holds the 4 u64s (32 bytes) written; the unaligned store takes any address.
+        unsafe { _mm256_storeu_si256(w.as_mut_ptr().cast::<__m256i>(), v[k]) };
     }
     let mut r = ZERO;
-    _mm256_storeu_si256(r.as_mut_ptr().cast::<__m256i>(), out);
+    // SAFETY: `r` holds the 4 u64s (32 bytes) written; the unaligned store takes any address.
+    unsafe { _mm256_storeu_si256(r.as_mut_ptr().cast::<__m256i>(), out) };
     r
 }
 
@@ -186,15 +222,20 @@ fn csa(a: W, b: W, c: W) -> (W, W) {
 /// batches of 16 words, the sixteens rippled into a vertical binary counter.
 #[derive(Clone, Copy)]
 pub(crate) struct LaneCounter {
+    /// Bit 0 of each lane's count within the current sixteen.
     ones: W,
+    /// Bit 1.
     twos: W,
+    /// Bit 2.
     fours: W,
+    /// Bit 3.
     eights: W,
     /// Planes of the count of sixteens (2^32 · 16 exceeds any horizon).
     sixteens: [W; 32],
 }
 
 impl LaneCounter {
+    /// All counts zero.
     pub(crate) const NEW: LaneCounter = LaneCounter {
         ones: ZERO,
         twos: ZERO,
@@ -203,6 +244,7 @@ impl LaneCounter {
         sixteens: [ZERO; 32],
     };
 
+    /// Adds the bits of a batch of [`BATCH`] words to each lane's count.
     #[inline(always)]
     pub(crate) fn add16(&mut self, d: &[W; BATCH]) {
         let (twos_a, ones) = csa(self.ones, d[0], d[1]);

@@ -1,8 +1,16 @@
-use super::{resolve_ties4, Proto, Xoshiro256pp, SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
+//! Four-lane operations on plain arrays: the portable instantiation of the grouped kernel.
 
+use super::grouped::resolve_ties4;
+use super::Proto;
+use crate::montecarlo::{SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
+use crate::rng::Xoshiro256pp;
+
+/// Four u64 lanes.
 pub(super) type U = [u64; 4];
+/// Four f64 lanes.
 pub(super) type F = [f64; 4];
 
+/// `[f(0), f(1), f(2), f(3)]` for the body `|i| f(i)`.
 macro_rules! map {
     (|$i:ident| $e:expr) => {{
         let mut out = [Default::default(); 4];
@@ -13,42 +21,52 @@ macro_rules! map {
     }};
 }
 
+/// `x` in every lane.
 #[inline(always)]
 pub(super) fn splat(x: u64) -> U {
     [x; 4]
 }
+/// Loads `a[0..4]`.
 #[inline(always)]
 pub(super) fn load(a: &[u64]) -> U {
     [a[0], a[1], a[2], a[3]]
 }
+/// Stores `v` to `a[0..4]`.
 #[inline(always)]
 pub(super) fn store(a: &mut [u64], v: U) {
     a[..4].copy_from_slice(&v);
 }
+/// Loads `a[0..4]`.
 #[inline(always)]
 pub(super) fn fload(a: &[f64]) -> F {
     [a[0], a[1], a[2], a[3]]
 }
+/// Stores `v` to `a[0..4]`.
 #[inline(always)]
 pub(super) fn fstore(a: &mut [f64], v: F) {
     a[..4].copy_from_slice(&v);
 }
+/// Wrapping `a + b`.
 #[inline(always)]
 pub(super) fn add(a: U, b: U) -> U {
     map!(|i| a[i].wrapping_add(b[i]))
 }
+/// Wrapping `a - b`.
 #[inline(always)]
 pub(super) fn sub(a: U, b: U) -> U {
     map!(|i| a[i].wrapping_sub(b[i]))
 }
+/// `a & b`.
 #[inline(always)]
 pub(super) fn and(a: U, b: U) -> U {
     map!(|i| a[i] & b[i])
 }
+/// `a | b`.
 #[inline(always)]
 pub(super) fn or(a: U, b: U) -> U {
     map!(|i| a[i] | b[i])
 }
+/// `a ^ b`.
 #[inline(always)]
 pub(super) fn xor(a: U, b: U) -> U {
     map!(|i| a[i] ^ b[i])
@@ -58,6 +76,7 @@ pub(super) fn xor(a: U, b: U) -> U {
 pub(super) fn andnot(a: U, b: U) -> U {
     map!(|i| !a[i] & b[i])
 }
+/// `a >> N`.
 #[inline(always)]
 pub(super) fn shr<const N: u32>(a: U) -> U {
     map!(|i| a[i] >> N)
@@ -71,6 +90,7 @@ pub(super) fn gt(a: U, b: U) -> U {
         0
     })
 }
+/// a == b as a lane mask.
 #[inline(always)]
 pub(super) fn eq(a: U, b: U) -> U {
     map!(|i| if a[i] == b[i] { u64::MAX } else { 0 })
@@ -80,6 +100,7 @@ pub(super) fn eq(a: U, b: U) -> U {
 pub(super) fn blend(m: U, t: U, f: U) -> U {
     map!(|i| if m[i] != 0 { t[i] } else { f[i] })
 }
+/// `a + b`.
 #[inline(always)]
 pub(super) fn fadd(a: F, b: F) -> F {
     map!(|i| a[i] + b[i])
@@ -98,10 +119,14 @@ pub(super) fn mask_bit(mask: &[u64], c: U) -> U {
         .map_or(0, |w| (w >> (c[i] & 63)) & 1))
 }
 
+/// A value table prepared for [`lookup`].
 pub(super) struct Table<'a> {
+    /// The values.
     tr: &'a [f64],
+    /// The last index read.
     last: usize,
 }
+/// Prepares `tr` for lookups up to index `last` (clamped to the table).
 #[inline(always)]
 pub(super) fn table(tr: &[f64], last: u64) -> Table<'_> {
     Table {
@@ -121,14 +146,18 @@ pub(super) fn lookup(t: &Table, idx: U) -> F {
 
 /// Four xoshiro256++ lanes and their current word of 16-bit slices.
 pub(super) struct Stream {
+    /// The xoshiro256++ state words, each over the four lanes.
     s: [U; 4],
-    bits: U,
-    avail: u32,
+    /// Each lane's current random word.
+    slice_word: U,
+    /// Slices left in `slice_word`.
+    slices_left: u32,
 }
 
 impl Stream {
+    /// The streams of lanes lo..lo+4 of `p`, with `slices_left` slices left in their words.
     #[inline(always)]
-    pub(super) fn load(p: &Proto, lo: usize, avail: u32) -> Self {
+    pub(super) fn load(p: &Proto, lo: usize, slices_left: u32) -> Self {
         Stream {
             s: [
                 load(&p.s0[lo..]),
@@ -136,33 +165,34 @@ impl Stream {
                 load(&p.s2[lo..]),
                 load(&p.s3[lo..]),
             ],
-            bits: load(&p.bits[lo..]),
-            avail,
+            slice_word: load(&p.slice_word[lo..]),
+            slices_left,
         }
     }
+    /// Writes the streams back to lanes lo..lo+4 of `p`; returns the slices left.
     #[inline(always)]
     pub(super) fn store(&self, p: &mut Proto, lo: usize) -> u32 {
         store(&mut p.s0[lo..], self.s[0]);
         store(&mut p.s1[lo..], self.s[1]);
         store(&mut p.s2[lo..], self.s[2]);
         store(&mut p.s3[lo..], self.s[3]);
-        store(&mut p.bits[lo..], self.bits);
-        self.avail
+        store(&mut p.slice_word[lo..], self.slice_word);
+        self.slices_left
     }
-    /// An exact Bernoulli(T / 2^64) draw per lane, T = thr·2^48 + lo, as a lane mask.
+    /// An exact Bernoulli(T / 2^64) draw per lane, T = top·2^48 + rest, as a lane mask.
     #[inline(always)]
-    pub(super) fn draw(&mut self, thr: U, lo: u64, side: &mut [Xoshiro256pp]) -> U {
-        if self.avail == 0 {
-            self.bits = crate::rng::xoshiro256pp_x4(&mut self.s);
-            self.avail = SLICES_PER_WORD;
+    pub(super) fn draw(&mut self, top: U, rest: u64, side: &mut [Xoshiro256pp]) -> U {
+        if self.slices_left == 0 {
+            self.slice_word = crate::rng::xoshiro256pp_x4(&mut self.s);
+            self.slices_left = SLICES_PER_WORD;
         }
-        self.avail -= 1;
-        let u = and(self.bits, splat(SLICE_MASK));
-        self.bits = shr::<SLICE_BITS>(self.bits);
-        let mut hit = gt(thr, u);
-        let tie = eq(u, thr);
+        self.slices_left -= 1;
+        let u = and(self.slice_word, splat(SLICE_MASK));
+        self.slice_word = shr::<SLICE_BITS>(self.slice_word);
+        let mut hit = gt(top, u);
+        let tie = eq(u, top);
         if tie.iter().any(|&t| t != 0) {
-            resolve_ties4(&mut hit, &tie, side, lo);
+            resolve_ties4(&mut hit, &tie, side, rest);
         }
         hit
     }

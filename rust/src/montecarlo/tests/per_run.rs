@@ -64,9 +64,24 @@ fn delivered_mean_matches_flag_rates() {
 }
 
 /// (b) The record depends on the seed only: 1 or 2 threads, any kernel, either mode and either
-/// protocol; entry i is run i, whatever the number of runs after it.
+/// protocol; entry i is run i, whatever the number of runs after it. Checked here with the
+/// portable kernels, and with the AVX2 ones in `avx2_delivered_matches_portable`.
 #[test]
 fn delivered_independent_of_threads_and_kernel() {
+    check_delivered_record(Isa::Portable);
+}
+
+/// (b) with the AVX2 kernels.
+#[test]
+fn avx2_delivered_matches_portable() {
+    if let Some(avx2) = avx2_or_skip("avx2_delivered_matches_portable") {
+        check_delivered_record(avx2);
+    }
+}
+
+/// The checks of (b), with `fast` (portable or AVX2) as the grouped lane kernel and the
+/// bit-sliced kernel's build, against the reference and the portable bit-sliced kernel.
+fn check_delivered_record(fast: Isa) {
     let sys = scalar_sys();
     let attack = || Some(vec![true, false, true, false, false]);
     let mut cases = Vec::new();
@@ -102,40 +117,34 @@ fn delivered_independent_of_threads_and_kernel() {
         assert!(d.iter().any(|&x| x != d[0]), "{cfg:?}");
         assert_eq!(two.install(|| go(&cfg, Isa::Reference)), reference);
         assert_eq!(two.install(|| go(&cfg, Isa::Portable)), reference);
-        assert_eq!(one.install(|| go(&cfg, detect_isa())), reference);
-        assert_eq!(two.install(|| go(&cfg, detect_isa())), reference);
+        assert_eq!(one.install(|| go(&cfg, fast)), reference);
+        assert_eq!(two.install(|| go(&cfg, fast)), reference);
         let a = McConfig {
             protocol: Protocol::A,
             ..cfg.clone()
         };
-        assert_eq!(two.install(|| go(&a, detect_isa())).delivered_per_run, *d);
+        assert_eq!(two.install(|| go(&a, fast)).delivered_per_run, *d);
         // State mode draws the same protocol randomness.
         let state = McConfig {
             mode: Mode::State,
             ..cfg.clone()
         };
-        assert_eq!(
-            two.install(|| go(&state, detect_isa())).delivered_per_run,
-            *d
-        );
+        assert_eq!(two.install(|| go(&state, fast)).delivered_per_run, *d);
         // Run order: the first runs of a smaller experiment are the same runs.
         let fewer = McConfig {
             runs: BLOCK_RUNS + 21,
             ..cfg.clone()
         };
-        let r = two.install(|| go(&fewer, detect_isa()));
+        let r = two.install(|| go(&fewer, fast));
         assert_eq!(r.delivered_per_run[..], d[..fewer.runs as usize]);
         // The bit-sliced kernel: its own samples, with the same guarantees.
         let sliced = |cfg: &McConfig, isa| run_on(cfg, isa, true);
         let bs = one.install(|| sliced(&cfg, Isa::Portable));
         let d = &bs.delivered_per_run;
         assert_eq!(d.len() as u64, cfg.runs);
-        assert_eq!(two.install(|| sliced(&cfg, detect_isa())), bs);
-        assert_eq!(
-            two.install(|| sliced(&a, detect_isa())).delivered_per_run,
-            *d
-        );
-        let r = two.install(|| sliced(&fewer, detect_isa()));
+        assert_eq!(two.install(|| sliced(&cfg, fast)), bs);
+        assert_eq!(two.install(|| sliced(&a, fast)).delivered_per_run, *d);
+        let r = two.install(|| sliced(&fewer, fast));
         assert_eq!(r.delivered_per_run[..], d[..fewer.runs as usize]);
         // Its record agrees with its totals.
         let total: u64 = d.iter().sum();

@@ -94,12 +94,59 @@ fn env_or(name: &str, default: usize) -> usize {
 #[ignore]
 fn speed() {
     let sys = scalar_sys();
+    let big = ten_state_sys();
     let filter = std::env::var("MC_SPEED_FILTER").unwrap_or_default();
+    let threads = env_or("MC_SPEED_THREADS", 2);
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let families = [
+        ("", detect_isa(), true),
+        ("lanes ", detect_isa(), false),
+        ("lanes ", Isa::Portable, false),
+    ];
+    for (family, isa, bitslice) in families {
+        let kernels = Kernels { isa, bitslice };
+        for (name, cfg) in speed_cases() {
+            let label = format!("{family}{} {name}", isa.name());
+            let keep = match filter.strip_prefix('^') {
+                Some(head) => label.starts_with(head),
+                None => label.contains(filter.as_str()),
+            };
+            if !keep {
+                continue;
+            }
+            let state = cfg.mode == Mode::State;
+            let cfg = McConfig {
+                horizon: env_or("MC_SPEED_HORIZON", 10_000),
+                runs: env_or("MC_SPEED_RUNS", if state { 256 } else { 8192 } * threads) as u64,
+                ..cfg
+            };
+            let sys = if name.contains("10-state") {
+                &big
+            } else {
+                &sys
+            };
+            let (best, best_cpu, j) = pool.install(|| best_speed(sys, &cfg, kernels));
+            println!(
+                "{label}: {best:.3e} steps/s wall, {best_cpu:.3e} per CPU-s ({threads} threads; j = {j:.6})"
+            );
+        }
+    }
+}
+
+/// The speed test's experiments, by name.
+fn speed_cases() -> Vec<(&'static str, McConfig)> {
     let attack = || Some(vec![true, false, false]);
     let offline = McSchedule::Offline {
         pattern: vec![1, 0, 0, 0, 0, 0, 0],
     };
-    let cases: Vec<(&str, McConfig)> = vec![
+    let state = |cfg: McConfig| McConfig {
+        mode: Mode::State,
+        ..cfg
+    };
+    vec![
         ("online z0=2 mu=1", online(0.5, 2, 1.0, None)),
         ("online z0=2 mu=0.4", online(0.5, 2, 0.4, None)),
         ("online attack 1/3 B", online(0.5, 2, 1.0, attack())),
@@ -118,113 +165,67 @@ fn speed() {
                 ..online(0.5, 2, 1.0, None)
             },
         ),
-        (
-            "state online z0=2 mu=1",
-            McConfig {
-                mode: Mode::State,
-                runs: 2_000,
-                ..online(0.5, 2, 1.0, None)
-            },
-        ),
+        ("state online z0=2 mu=1", state(online(0.5, 2, 1.0, None))),
         (
             "state online attack 1/5",
-            McConfig {
-                mode: Mode::State,
-                ..online(0.5, 2, 1.0, Some(vec![true, false, false, false, false]))
-            },
+            state(online(
+                0.5,
+                2,
+                1.0,
+                Some(vec![true, false, false, false, false]),
+            )),
         ),
         (
             "state 10-state online z0=2 mu=1",
-            McConfig {
-                mode: Mode::State,
-                ..online(0.5, 2, 1.0, None)
-            },
+            state(online(0.5, 2, 1.0, None)),
         ),
         (
             "state offline 1/7",
-            McConfig {
-                mode: Mode::State,
-                runs: 2_000,
+            state(McConfig {
                 schedule: offline,
                 ..online(0.5, 2, 1.0, None)
-            },
+            }),
         ),
-    ];
-    let threads = std::env::var("MC_SPEED_THREADS")
-        .ok()
-        .and_then(|t| t.parse().ok())
-        .unwrap_or(2usize);
-    // State mode on a 10-state, 3-output system (n_x = 10 is the brief's "useful speed" size).
-    let big = {
-        let n = 10;
-        let mut a = DMatrix::<f64>::identity(n, n) * 0.95;
-        for i in 0..n - 1 {
-            a[(i, i + 1)] = 0.2;
-        }
-        a[(0, 0)] = 1.1;
-        let mut c = DMatrix::<f64>::zeros(3, n);
-        for i in 0..3 {
-            c[(i, 3 * i)] = 1.0;
-            c[(i, 3 * i + 1)] = 0.5;
-        }
-        let q = DMatrix::<f64>::identity(n, n) * 0.1;
-        let r = DMatrix::<f64>::identity(3, 3);
-        LinearSystem::new(a, c, q, r).unwrap()
-    };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap();
-    let families = [
-        ("", detect_isa(), true),
-        ("lanes ", detect_isa(), false),
-        ("lanes ", Isa::Portable, false),
-    ];
-    for (family, isa, bitslice) in families {
-        let kernels = Kernels { isa, bitslice };
-        for (name, cfg) in &cases {
-            let label = format!("{family}{isa:?} {name}");
-            let keep = match filter.strip_prefix('^') {
-                Some(head) => label.starts_with(head),
-                None => label.contains(filter.as_str()),
-            };
-            if !keep {
-                continue;
-            }
-            let state = cfg.mode == Mode::State;
-            let cfg = McConfig {
-                horizon: env_or("MC_SPEED_HORIZON", 10_000),
-                runs: env_or("MC_SPEED_RUNS", if state { 256 } else { 8192 } * threads) as u64,
-                ..cfg.clone()
-            };
-            // Best of five repetitions: the least disturbed by other processes.
-            let (mut best, mut best_cpu, mut j) = (0.0f64, 0.0f64, 0.0);
-            for _ in 0..env_or("MC_SPEED_REPS", 5) {
-                let (t, c) = (std::time::Instant::now(), cpu_seconds());
-                let r = pool
-                    .install(|| {
-                        simulate_with(
-                            if name.contains("10-state") {
-                                &big
-                            } else {
-                                &sys
-                            },
-                            &cfg,
-                            &AtomicBool::new(false),
-                            &AtomicU64::new(0),
-                            kernels,
-                        )
-                    })
-                    .unwrap();
-                let (dt, dc) = (t.elapsed().as_secs_f64(), cpu_seconds() - c);
-                let steps = cfg.runs as f64 * cfg.horizon as f64;
-                best = best.max(steps / dt);
-                best_cpu = best_cpu.max(steps / dc);
-                j = r.j;
-            }
-            println!(
-                "{family}{isa:?} {name}: {best:.3e} steps/s wall, {best_cpu:.3e} per CPU-s ({threads} threads; j = {j:.6})"
-            );
-        }
+    ]
+}
+
+/// State mode on a 10-state, 3-output system (n_x = 10 is the brief's "useful speed" size).
+fn ten_state_sys() -> LinearSystem {
+    let n = 10;
+    let mut a = DMatrix::<f64>::identity(n, n) * 0.95;
+    for i in 0..n - 1 {
+        a[(i, i + 1)] = 0.2;
     }
+    a[(0, 0)] = 1.1;
+    let mut c = DMatrix::<f64>::zeros(3, n);
+    for i in 0..3 {
+        c[(i, 3 * i)] = 1.0;
+        c[(i, 3 * i + 1)] = 0.5;
+    }
+    let q = DMatrix::<f64>::identity(n, n) * 0.1;
+    let r = DMatrix::<f64>::identity(3, 3);
+    LinearSystem::new(a, c, q, r).unwrap()
+}
+
+/// The best of `MC_SPEED_REPS` (5) runs of `cfg`, the least disturbed by other processes:
+/// (steps/s wall, steps per CPU-second, J).
+fn best_speed(sys: &LinearSystem, cfg: &McConfig, kernels: Kernels) -> (f64, f64, f64) {
+    let (mut best, mut best_cpu, mut j) = (0.0f64, 0.0f64, 0.0);
+    for _ in 0..env_or("MC_SPEED_REPS", 5) {
+        let (t, c) = (std::time::Instant::now(), cpu_seconds());
+        let r = simulate_with(
+            sys,
+            cfg,
+            &AtomicBool::new(false),
+            &AtomicU64::new(0),
+            kernels,
+        )
+        .unwrap();
+        let (dt, dc) = (t.elapsed().as_secs_f64(), cpu_seconds() - c);
+        let steps = cfg.runs as f64 * cfg.horizon as f64;
+        best = best.max(steps / dt);
+        best_cpu = best_cpu.max(steps / dc);
+        j = r.j;
+    }
+    (best, best_cpu, j)
 }

@@ -1,0 +1,357 @@
+//! The bit-sliced kernel's body: one block of [`RUNS`] runs, step by step, on bit-planes. Its
+//! helpers are `#[inline(always)]` so that, as in one function, the thermometers and the counter
+//! planes stay in registers and the level loops unroll.
+
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use super::words::{
+    and, andnot, equals, increment, less_than, not, or, popcount, splat, xor, LaneCounter, Rng4,
+    StreamStepper, BATCH, ONES, RUNS, W, ZERO,
+};
+use super::{BsBlock, BsOut, BsPlan, CANCEL_STEPS, MAX_DEPTH};
+use crate::error::{Error, Result};
+
+/// OR of the levels whose selector is set (a level picked by a run-time index without
+/// indexing, so the levels can live in registers).
+#[inline(always)]
+fn pick<const D: usize>(levels: &[W; D], sel: &[bool; D]) -> W {
+    let mut out = ZERO;
+    for j in 0..D {
+        out = or(out, and(levels[j], splat(sel[j])));
+    }
+    out
+}
+
+/// Advances a thermometer by one step: all levels clear where `reset`, else every lane moves
+/// one level up (`levels[j]` holds "≥ j + 1").
+#[inline(always)]
+fn step_up<const D: usize>(levels: &mut [W; D], reset: W) {
+    for j in (1..D).rev() {
+        levels[j] = andnot(levels[j - 1], reset);
+    }
+    levels[0] = not(reset);
+}
+
+/// The selectors of the memory lengths on a zero-count thermometer: level L - 1 holds "≥ L".
+struct MemoryLevels<const D: usize> {
+    /// The memory length when there is no μ draw.
+    fixed: [bool; D],
+    /// z0 bits (with probability μ).
+    short: [bool; D],
+    /// z0 + 1 bits.
+    long: [bool; D],
+}
+
+impl<const D: usize> MemoryLevels<D> {
+    /// The selectors of `p`'s memory lengths.
+    fn new(p: &BsPlan) -> Self {
+        let sel = |len: usize| -> [bool; D] { std::array::from_fn(|j| j + 1 == len) };
+        MemoryLevels {
+            fixed: sel(p.fixed_memory),
+            short: sel(p.z0),
+            long: sel(p.z0 + 1),
+        }
+    }
+
+    /// Lanes where the zero count `count` reaches the detector's memory: z0 bits (`short`,
+    /// drawn only where the count is exactly z0, the one place it matters) or z0 + 1 with a μ
+    /// draw, else the fixed length.
+    #[inline(always)]
+    fn reached<const MU_DRAW: bool, S: StreamStepper>(
+        &self,
+        count: &[W; D],
+        rng: &mut Rng4,
+        stepper: S,
+        mu_thr: u64,
+    ) -> W {
+        if MU_DRAW {
+            let (long, at_z0) = (pick(count, &self.long), pick(count, &self.short));
+            let short = rng.bernoulli(stepper, mu_thr, andnot(at_z0, long));
+            or(long, and(at_z0, short))
+        } else {
+            pick(count, &self.fixed)
+        }
+    }
+}
+
+/// Lanes whose attacker counter σ (binary planes) lies in one of the mask's runs of ones.
+#[inline(always)]
+fn blocking<const B: usize>(sigma: &[W; B], mask_runs: &[Range<u64>]) -> W {
+    let mut blocking = ZERO;
+    for run in mask_runs {
+        let below_end = less_than(sigma, run.end);
+        let inside = if run.start == 0 {
+            below_end
+        } else {
+            andnot(below_end, less_than(sigma, run.start))
+        };
+        blocking = or(blocking, inside);
+    }
+    blocking
+}
+
+/// What the attacker lets through this step.
+struct Delivery {
+    /// Lanes whose sensor receives a flag (Δ at the next step).
+    high_next: W,
+    /// Lanes whose flag the attacker blocked or flipped.
+    lost: W,
+}
+
+/// The attacker on this step's flags: blocks them where `blocking`, and counts every flag in
+/// σ modulo `mask_len`. Protocol A and B give the same result by different operations.
+#[inline(always)]
+fn attack<const PROTO_A: bool, const B: usize>(
+    flag: W,
+    blocking: W,
+    sigma: &mut [W; B],
+    mask_len: u64,
+) -> Delivery {
+    let delivery = if PROTO_A {
+        // One bit every step; the attacker flips 1-bits to 0.
+        let bit = flag;
+        let lost = and(bit, blocking);
+        increment(sigma, bit);
+        Delivery {
+            high_next: xor(bit, lost),
+            lost,
+        }
+    } else {
+        // A flag packet only when a flag is due; the attacker drops it.
+        let lost = and(flag, blocking);
+        increment(sigma, flag);
+        Delivery {
+            high_next: andnot(flag, lost),
+            lost,
+        }
+    };
+    // All B planes take part (B >= the counter's bits; the planes above stay zero), so these
+    // loops unroll.
+    let wrap = equals(sigma, mask_len);
+    for plane in sigma.iter_mut() {
+        *plane = andnot(*plane, wrap);
+    }
+    delivery
+}
+
+/// This step's Σ over the active lanes of `tr[τ]`, from the histogram `n[j]` = #(τ ≥ j) read off
+/// the thermometer; empty bins add nothing (a select, not a branch, and no 0 · inf). Also
+/// stores the thermometer in slot `s` of the per-lane counters' batch.
+#[inline(always)]
+fn step_sum<const D: usize>(
+    therm: &[W; D],
+    active: W,
+    active_runs: usize,
+    tr: &[f64; MAX_DEPTH + 1],
+    batch: &mut [[W; BATCH]; D],
+    s: usize,
+) -> f64 {
+    let mut above = active_runs as u32;
+    let mut v = 0.0;
+    for j in 0..D {
+        let n = popcount(and(therm[j], active));
+        let x = tr[j] * f64::from(above - n);
+        v += if above != n { x } else { 0.0 };
+        above = n;
+        batch[j][s] = therm[j];
+    }
+    let x = tr[D] * f64::from(above);
+    v + if above != 0 { x } else { 0.0 }
+}
+
+/// Per-lane counts, fed a batch of [`BATCH`] steps at a time.
+struct Tallies<const D: usize> {
+    /// Level j: each lane's count of steps with τ ≥ j + 1.
+    levels: [LaneCounter; D],
+    /// Each lane's flags sent.
+    sent: LaneCounter,
+    /// Each lane's flags blocked or flipped.
+    lost: LaneCounter,
+    /// The current batch of thermometer words, level by level.
+    level_batch: [[W; BATCH]; D],
+    /// The current batch of sent flags.
+    sent_batch: [W; BATCH],
+    /// The current batch of lost flags.
+    lost_batch: [W; BATCH],
+}
+
+impl<const D: usize> Tallies<D> {
+    /// All counts zero.
+    fn new() -> Self {
+        Tallies {
+            levels: [LaneCounter::NEW; D],
+            sent: LaneCounter::NEW,
+            lost: LaneCounter::NEW,
+            level_batch: [[ZERO; BATCH]; D],
+            sent_batch: [ZERO; BATCH],
+            lost_batch: [ZERO; BATCH],
+        }
+    }
+
+    /// Adds the batch's first `n` steps to the counters (a partial last batch counts zeros in
+    /// its unused slots).
+    #[inline(always)]
+    fn add_batch<const ONLINE: bool, const ATTACK: bool>(&mut self, n: usize) {
+        for (c, d) in self.levels.iter_mut().zip(self.level_batch.iter_mut()) {
+            d[n..].fill(ZERO);
+            c.add16(d);
+        }
+        if ONLINE {
+            self.sent_batch[n..].fill(ZERO);
+            self.sent.add16(&self.sent_batch);
+            if ATTACK {
+                self.lost_batch[n..].fill(ZERO);
+                self.lost.add16(&self.lost_batch);
+            }
+        }
+    }
+
+    /// The block's report after `horizon` steps, with totals over the `active` lanes; each
+    /// lane's delivered flag-ACKs if `record`.
+    fn report(
+        &self,
+        horizon: usize,
+        tr: &[f64; MAX_DEPTH + 1],
+        active: W,
+        record: bool,
+        hi_last: u64,
+    ) -> BsOut {
+        BsOut {
+            sum: self.lane_sums(horizon, tr),
+            delivered: if record {
+                let (sent, lost) = (self.sent.counts(), self.lost.counts());
+                (0..RUNS).map(|l| sent[l] - lost[l]).collect()
+            } else {
+                Vec::new()
+            },
+            sent: self.sent.total(active),
+            blocked: self.lost.total(active),
+            hi_last,
+        }
+    }
+
+    /// Each lane's Σ_k `tr[τ_k]` over `horizon` steps from its histogram, in the order of the
+    /// per-step sums.
+    fn lane_sums(&self, horizon: usize, tr: &[f64; MAX_DEPTH + 1]) -> Vec<f64> {
+        let mut above = [horizon as u64; RUNS];
+        let mut sum = vec![0.0; RUNS];
+        for (j, c) in self.levels.iter().enumerate() {
+            for ((s, a), n) in sum.iter_mut().zip(above.iter_mut()).zip(c.counts()) {
+                let x = tr[j] * (*a - n) as f64;
+                *s += if *a != n { x } else { 0.0 };
+                *a = n;
+            }
+        }
+        for (s, a) in sum.iter_mut().zip(above) {
+            let x = tr[D] * a as f64;
+            *s += if a != 0 { x } else { 0.0 };
+        }
+        sum
+    }
+}
+
+/// The lanes of runs `0..active` (the rest of the block is padding).
+fn active_lanes(active: usize) -> W {
+    std::array::from_fn(|w| match active.saturating_sub(64 * w) {
+        0 => 0,
+        n if n >= 64 => u64::MAX,
+        n => (1u64 << n) - 1,
+    })
+}
+
+/// The offline pattern's power at this step (all lanes alike), advancing `pos` cyclically.
+#[inline(always)]
+fn pattern_step(pattern: &[u8], pos: &mut usize) -> W {
+    let g = pattern[*pos];
+    *pos = if *pos + 1 == pattern.len() {
+        0
+    } else {
+        *pos + 1
+    };
+    splat(g == 1)
+}
+
+/// The kernel on thermometers of D levels (`levels[j]` holds "≥ j + 1") and B counter planes;
+/// `stepper` steps the random streams (on AVX2 registers, or portably).
+#[inline(always)]
+pub(super) fn body<
+    const ONLINE: bool,
+    const MU_DRAW: bool,
+    const ATTACK: bool,
+    const PROTO_A: bool,
+    const D: usize,
+    const B: usize,
+    S: StreamStepper,
+>(
+    p: &BsPlan,
+    b: &mut BsBlock,
+    cancel: &AtomicBool,
+    stepper: S,
+) -> Result<BsOut> {
+    if p.levels(MU_DRAW, ATTACK) > D || (ATTACK && p.counter_bits() > B) || b.active > RUNS {
+        return Err(Error::invalid(
+            "sys",
+            "plan too large for the bit-sliced kernel",
+        ));
+    }
+    let active = active_lanes(b.active);
+    // tr padded with zeros to D + 1 levels (the extra levels are never occupied).
+    let tr: [f64; MAX_DEPTH + 1] = std::array::from_fn(|j| p.tr.get(j).copied().unwrap_or(0.0));
+    let memory = MemoryLevels::<D>::new(p);
+    let mut rng = Rng4::for_block(b.seed, b.block);
+    let mut therm = [ZERO; D];
+    let mut zeros = [ZERO; D];
+    let mut sigma = [ZERO; B];
+    let mut hi = ONES; // k = 1 is a high-power step
+    let mut tallies = Tallies::<D>::new();
+    let mut pattern_pos = 0usize;
+    let horizon = b.acc.len();
+    for (batch_index, steps) in b.acc.chunks_mut(BATCH).enumerate() {
+        if (batch_index * BATCH) % CANCEL_STEPS == 0 && cancel.load(Ordering::Relaxed) {
+            return Err(Error::Interrupted);
+        }
+        for (s, acc) in steps.iter_mut().enumerate() {
+            let high = if ONLINE {
+                hi
+            } else {
+                pattern_step(&p.pattern, &mut pattern_pos)
+            };
+            // Only low-power packets need the channel's draw.
+            let arrive = or(high, rng.bernoulli(stepper, p.lam_thr, not(high)));
+            // τ' = 0 on arrival, else τ + 1 (never beyond the plan's bound <= D).
+            step_up(&mut therm, arrive);
+            *acc += step_sum(&therm, active, b.active, &tr, &mut tallies.level_batch, s);
+            if !ONLINE {
+                continue;
+            }
+            let (flag, lost);
+            if ATTACK {
+                step_up(&mut zeros, arrive);
+                flag = memory.reached::<MU_DRAW, S>(&zeros, &mut rng, stepper, p.mu_thr);
+                for z in zeros.iter_mut() {
+                    *z = andnot(*z, flag);
+                }
+                let blocking = blocking(&sigma, &p.mask_runs);
+                let delivery = attack::<PROTO_A, B>(flag, blocking, &mut sigma, p.mask_len);
+                lost = delivery.lost;
+                hi = delivery.high_next;
+            } else {
+                // Without an attacker every flag is delivered and followed by an arrival, so
+                // the zero count equals τ whenever it matters.
+                flag = memory.reached::<MU_DRAW, S>(&therm, &mut rng, stepper, p.mu_thr);
+                lost = ZERO;
+                hi = flag;
+            }
+            tallies.sent_batch[s] = flag;
+            tallies.lost_batch[s] = lost;
+        }
+        tallies.add_batch::<ONLINE, ATTACK>(steps.len());
+    }
+    let hi_last = if ONLINE {
+        u64::from(popcount(and(hi, active)))
+    } else {
+        0
+    };
+    Ok(tallies.report(horizon, &tr, active, b.record, hi_last))
+}

@@ -1,0 +1,111 @@
+//! The public description of an experiment ([`McConfig`]) and of its outcome ([`McResult`]).
+
+use crate::attack::Attack;
+
+/// The sensor's power schedule.
+#[derive(Debug, Clone, PartialEq)]
+pub enum McSchedule {
+    /// A fixed pattern repeated periodically (the offline schedule).
+    Offline {
+        /// The power at each step of a period: 1 = high power Δ, 0 = low power δ; `pattern[0]`
+        /// must be 1 (the sensor uses Δ at k = 1).
+        pattern: Vec<u8>,
+    },
+    /// The ACK-based online schedule: z0-bit memory with probability `mu`, else z0+1 bits.
+    Online {
+        /// The short memory length, >= 1: a flag-ACK after z0 zero ACKs in a row.
+        z0: u64,
+        /// The probability μ of using the z0-bit memory at a step, in [0, 1] (Model note 2).
+        mu: f64,
+    },
+}
+
+/// What each run tracks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mode {
+    /// τ_k only; accumulates Tr P_k = `tr[τ_k]` = Tr h^τ_k(P̄).
+    Covariance,
+    /// The estimation errors themselves, with real Gaussian noise. The sensor's steady-state
+    /// Kalman filter (gain K = P⁻C'(CP⁻C'+R)^{-1}, P⁻ = AP̄A'+Q) has error
+    /// e^s_k = (I-KC)(A e^s_{k-1} + w_{k-1}) - K v_k, started stationary e^s_0 ~ N(0, P̄); the
+    /// remote error is e_k = e^s_k on arrival, else A e_{k-1} + w_{k-1} (the same w draw).
+    /// Accumulates ||e_k||², whose mean is `Tr E[P_k]`.
+    ///
+    /// Simulating the errors rather than the state x_k keeps an unstable A from overflowing: x_k
+    /// grows like ρ(A)^k over the whole horizon (1.2^k overflows f64 after ~3900 steps), while
+    /// e_k only grows during a run of losses and restarts from e^s_k at every arrival. An error
+    /// that does overflow (an astronomically long loss run) is reported as +inf, never NaN.
+    State,
+}
+
+/// How the flag-ACK travels from the detector to the sensor.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Protocol {
+    /// One bit every step (1 = flag); the attacker flips 1-bits to 0 (integrity attack).
+    A,
+    /// A flag packet only when a flag is due; the attacker drops it (DoS).
+    B,
+}
+
+/// One Monte Carlo experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct McConfig {
+    /// Low-power arrival probability λ, in (0, 1).
+    pub lam: f64,
+    /// The sensor's power schedule.
+    pub schedule: McSchedule,
+    /// The attack on the flag-ACKs (online schedule only): [`Attack::Periodic`] blocks the first
+    /// r of every t, [`Attack::Mask`] any periodic mask over the attacker's flag counter (a mask
+    /// of all ones blocks every flag, and the runs estimate J_max). `None`: no attacker.
+    pub attack: Option<Attack>,
+    /// Covariance (τ only) or state (Gaussian errors) fidelity.
+    pub mode: Mode,
+    /// How the flag-ACK travels (A and B give identical results for the same seed).
+    pub protocol: Protocol,
+    /// Steps per run, 1..=[`MAX_HORIZON`](super::MAX_HORIZON).
+    pub horizon: usize,
+    /// Number of independent runs, >= 1.
+    pub runs: u64,
+    /// The results depend on this seed only (not on threads or CPU features).
+    pub seed: u64,
+    /// Record each run's number of delivered flag-ACKs in [`McResult::delivered_per_run`]
+    /// (8 bytes per run, at most 2^28 runs). `false`: nothing extra is kept.
+    pub record_runs: bool,
+}
+
+/// Averages over the runs.
+#[derive(Debug, Clone, PartialEq)]
+pub struct McResult {
+    /// Length `horizon`: average over runs of Tr P_k (covariance) or ||e_k||² (state), k = 1..
+    pub mean_trace: Vec<f64>,
+    /// J_k = (1/k) Σ_{i<=k} `mean_trace[i]` (a compensated running sum).
+    pub j_k: Vec<f64>,
+    /// `j_k[horizon-1]`, the mean over runs of each run's time average.
+    pub j: f64,
+    /// Standard error of `j`: sample standard deviation of the per-run time averages over
+    /// sqrt(runs). `+inf` with a single run (no spread can be estimated) or when some run's
+    /// average is infinite; never NaN.
+    pub stderr: f64,
+    /// Fraction of steps at high power Δ.
+    pub high_power_rate: f64,
+    /// Flag-ACKs sent by the detector, per step.
+    pub flags_sent: f64,
+    /// Flag-ACKs blocked (protocol B) or flipped (protocol A) by the attacker, per step.
+    pub flags_blocked: f64,
+    /// Number of runs.
+    pub runs: u64,
+    /// Steps per run (= horizon).
+    pub steps: u64,
+    /// Only with [`McConfig::record_runs`] (else empty, never allocated): entry i is the number
+    /// of flag-ACKs delivered to the sensor during run i over steps 1..=horizon, that is sent by
+    /// the detector and neither blocked (protocol B) nor flipped (protocol A); a flag delivered
+    /// at the last step counts, and the initial high-power step at k = 1 is not a flag. Runs are
+    /// in run order: run i is position i % [`BLOCK_RUNS`](super::BLOCK_RUNS) of block i / [`BLOCK_RUNS`](super::BLOCK_RUNS), so the
+    /// entries depend on the seed only (not on threads or kernels), and a run's entry does not
+    /// depend on how many runs follow it. All zeros for an offline schedule (no flags). Its mean
+    /// over runs, divided by the horizon, is `flags_sent - flags_blocked`.
+    ///
+    /// Memory: the one output that grows with `runs`, 8 bytes per run (2 GiB at the limit of
+    /// 2^28 runs; more is refused with [`Error::TooLarge`](crate::Error::TooLarge)).
+    pub delivered_per_run: Vec<u64>,
+}
