@@ -125,6 +125,14 @@ pub fn capped_attack_chain(
         }
         out
     };
+    explore(succ)
+}
+
+/// Breadth-first exploration from [`START`] with the successor function `succ`: the states in
+/// discovery order and the row-stochastic CSR matrix of their transitions.
+fn explore(
+    succ: impl Fn(GeneralState) -> Vec<(GeneralState, f64)>,
+) -> Result<(Vec<GeneralState>, Csr)> {
     let mut index: HashMap<GeneralState, usize> = HashMap::new();
     let mut states = vec![START];
     index.insert(START, 0);

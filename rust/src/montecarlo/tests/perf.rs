@@ -189,7 +189,7 @@ fn speed_cases() -> Vec<(&'static str, McConfig)> {
     ]
 }
 
-/// State mode on a 10-state, 3-output system (n_x = 10 is the brief's "useful speed" size).
+/// State mode on a 10-state, 3-output system (n_x = 10: the size at which state mode should stay useful).
 fn ten_state_sys() -> LinearSystem {
     let n = 10;
     let mut a = DMatrix::<f64>::identity(n, n) * 0.95;
