@@ -39,3 +39,16 @@ def test_malformed_csr_is_a_value_error():
     bad = np.array([0, 2], dtype=np.int64)
     with pytest.raises(ValueError, match="T: malformed CSR"):
         _fakeack.stationary_gth(bad, np.array([0], dtype=np.int64), np.array([1.0]))
+
+
+@pytest.mark.parametrize("kind, exc, text", [
+    ("invalid", ValueError, "arg: is wrong"),
+    ("too_large", ValueError, "arg: the request needs 2 elements, more than the limit of 1"),
+    ("not_converged", fa.ConvergenceError, "a solver did not converge after 3 iterations"),
+    ("interrupted", KeyboardInterrupt, "interrupted"),
+])
+def test_every_core_error_maps_to_its_exception(kind, exc, text):
+    with pytest.raises(exc, match=text):
+        _fakeack.raise_core_error(kind)
+    with pytest.raises(ValueError, match="kind"):
+        _fakeack.raise_core_error("other")

@@ -21,6 +21,7 @@ __all__ = [
     "high_power_rate",
     "num_states",
     "offline_schedule",
+    "raise_core_error",
     "simulate",
     "stationary_gth",
     "stationary_structured",
@@ -123,3 +124,4 @@ def simulate(
     progress: Callable[[int], object],
     record_runs: bool,
 ) -> dict[str, Any]: ...
+def raise_core_error(kind: str) -> None: ...

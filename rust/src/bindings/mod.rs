@@ -97,6 +97,32 @@ pub(crate) fn attack_of(a: Option<&Bound<'_, PyAttack>>) -> Option<Attack> {
     a.map(|a| a.get().inner.clone())
 }
 
+/// Raises the exception that the [`Error`] variant named `kind` maps to, so that the mapping of
+/// every variant is tested from Python ("invalid", "too_large", "not_converged", "interrupted").
+#[pyfunction]
+fn raise_core_error(kind: &str) -> PyResult<()> {
+    let e = match kind {
+        "invalid" => Error::invalid("arg", "is wrong"),
+        "too_large" => Error::TooLarge {
+            arg: "arg".into(),
+            requested: 2,
+            limit: 1,
+        },
+        "not_converged" => Error::NotConverged {
+            what: "a solver",
+            iterations: 3,
+            residual: 0.5,
+        },
+        "interrupted" => Error::Interrupted,
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "kind: unknown error kind {kind:?}"
+            )))
+        }
+    };
+    Err(e.into())
+}
+
 #[pymodule]
 #[pyo3(name = "_fakeack")]
 fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -111,6 +137,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(chains::stationary_structured, m)?)?;
     m.add_function(wrap_pyfunction!(chains::general_attack_chain, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(raise_core_error, m)?)?;
     m.add_function(wrap_pyfunction!(chains::stationary_gth, m)?)?;
     m.add_function(wrap_pyfunction!(chains::balance_residual, m)?)?;
     m.add("MAX_BUILD_STATES", crate::chain::MAX_BUILD_STATES as u64)?;
