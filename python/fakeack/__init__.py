@@ -5,7 +5,7 @@ Y. Li, D. E. Quevedo, S. Dey, L. Shi, "Fake-Acknowledgment Attack on ACK-based S
 Schedule for Remote State Estimation", with the corrections listed in the README's model notes.
 """
 
-from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError
+from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError, __version__
 from .attack import (
     attack_chain,
     balance_residual,
@@ -58,8 +58,6 @@ from .threshold import (
     j_attack_pattern,
     worst_mask,
 )
-
-__version__ = "0.1.0"
 
 __all__ = [
     "MaskBlocking",

@@ -30,6 +30,7 @@ MAX_BUILD_STATES: int
 MAX_VECTOR_STATES: int
 DEFAULT_TOL: float
 DEFAULT_MAX_ITER: int
+__version__: str
 
 class ConvergenceError(ValueError): ...
 
