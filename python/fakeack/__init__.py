@@ -5,7 +5,8 @@ Y. Li, D. E. Quevedo, S. Dey, L. Shi, "Fake-Acknowledgment Attack on ACK-based S
 Schedule for Remote State Estimation", with the corrections listed in the README's model notes.
 """
 
-from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError, __version__
+from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError
+from ._fakeack import __version__ as __version__  # written once, in Cargo.toml
 from .attack import (
     attack_chain,
     balance_residual,

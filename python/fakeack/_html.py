@@ -10,7 +10,7 @@ from typing import Any
 
 __all__ = ["analysis", "key_values", "number", "table"]
 
-_STYLE = "border-collapse:collapse;font-variant-numeric:tabular-nums"
+_STYLE = "border-collapse:collapse;font-variant-numeric:tabular-nums;margin:0.4em 0"
 _CELL = "padding:0.15em 0.6em;text-align:{align};border-bottom:1px solid #ddd"
 
 
@@ -35,7 +35,8 @@ def _row(cells: Sequence[str], tag: str = "td") -> str:
 
 def table(title: str, head: Sequence[str] | None, rows: Iterable[Sequence[str]], note: str = "") -> str:
     """A titled HTML table; the first column is left-aligned, the others right-aligned (numbers)."""
-    parts = [f'<table style="{_STYLE}"><caption style="text-align:left;font-weight:bold">{escape(title)}</caption>']
+    caption = f'<caption style="text-align:left;font-weight:bold">{escape(title)}</caption>'
+    parts = [f'<table style="{_STYLE}">{caption}']
     if head:
         parts.append("<thead>" + _row(head, "th") + "</thead>")
     parts.append("<tbody>" + "".join(_row(r) for r in rows) + "</tbody></table>")
