@@ -147,7 +147,7 @@ class LinearSystem:
             )
         if _is_continuous(sys):
             raise ValueError(
-                f"sys is a continuous-time model ({type(sys).__name__} with dt={getattr(sys, 'dt', None)!r}); "
+                f"sys is a continuous-time model ({type(sys).__name__}, dt={getattr(sys, 'dt', None)!r}); "
                 "the fake-ACK analysis is in discrete time: sample it first (python-control: sys.sample(Ts))"
             )
         return cls(sys.A, sys.C, Q, R, tol=tol, max_iter=max_iter)
