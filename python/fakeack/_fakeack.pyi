@@ -24,6 +24,7 @@ __all__ = [
     "simulate",
     "stationary_gth",
     "stationary_structured",
+    "__version__",
 ]
 
 MAX_BUILD_STATES: int
