@@ -36,6 +36,11 @@ Tasks (``--tasks``, default all):
   attack "first 1 of every 5") against the vectorised numpy baseline ``numpy_protocol.simulate``,
   same runs and horizon; the two J must agree within 4 combined standard errors. fakeack uses every
   core, numpy one. Skipped if the compiled module has no ``simulate`` yet.
+* ``abi3`` (only when asked for, with ``--abi3-wheels ABI3.whl SPECIFIC.whl``): the shipped abi3
+  build against a version-specific build of the same code, call by call in fresh processes (see
+  ``benches/abi3.py``). The "speedup" column is specific / abi3: below 1 where abi3 is slower.
+  The version-specific wheel comes from ``maturin build --release -F python`` (the ``abi3``
+  feature left out).
 
 Usage::
 
@@ -43,6 +48,7 @@ Usage::
     python benches/compare.py --quick              # small sizes only, under two minutes
     python benches/compare.py --json out.json      # also write the records as JSON
     python benches/compare.py --tasks pbar,sweep   # a subset
+    python benches/compare.py --tasks abi3 --abi3-wheels dist/*abi3*.whl target/wheels/*cp311*.whl
 
 The JSON file is a list of records with exactly the keys ``task``, ``size``, ``peer``,
 ``fakeack_seconds``, ``peer_seconds``, ``speedup`` (``null`` for a skipped or disagreeing peer).
@@ -96,6 +102,7 @@ CHAINS = {
 QUANTECON_MAX_STATES = 5_000
 NAIVE_TIMED_MAX_STATES = 2_000_000
 TASKS = ("pbar", "stationary", "sweep", "montecarlo")
+EXTRA_TASKS = ("abi3",)  # run only when named in --tasks
 
 
 # ----------------------------------------------------------------------------- bookkeeping
@@ -474,6 +481,23 @@ def task_montecarlo(b: Bench, quick: bool) -> None:
 # ----------------------------------------------------------------------------- main
 
 
+def task_abi3(b: Bench, wheels: list[str] | None, rounds: int) -> None:
+    """The abi3 wheel against a version-specific one: the same calls, alternating processes."""
+    import abi3
+
+    if not wheels or len(wheels) != 2:
+        print("abi3: give --abi3-wheels ABI3.whl SPECIFIC.whl", file=sys.stderr)
+        b.failed = True
+        return
+    files, times = abi3.measure([Path(w) for w in wheels], rounds)
+    peer = files[1].replace("_fakeack.", "").replace(".so", "")
+    for name, (abi3_s, specific_s) in times.items():
+        kind = abi3.CALLS[name][1]
+        diff = abi3_s - specific_s
+        note = f"{kind}: abi3 {diff / specific_s:+.1%} ({diff * 1e9:+.0f} ns per call)"
+        b.add(Row("abi3", name, f"version-specific build ({peer})", abi3_s, specific_s, note))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true", help="small sizes only (under two minutes)")
@@ -498,11 +522,18 @@ def main(argv: list[str] | None = None) -> int:
         default=None,
         help="seconds spent timing the naive sweep per t_max (default 20, quick 5)",
     )
+    ap.add_argument(
+        "--abi3-wheels",
+        nargs=2,
+        metavar=("ABI3", "SPECIFIC"),
+        help="for --tasks abi3: the abi3 wheel and a version-specific wheel of the same code",
+    )
+    ap.add_argument("--abi3-rounds", type=int, default=7, help="alternating child runs per wheel (abi3)")
     args = ap.parse_args(argv)
     tasks = [x.strip() for x in args.tasks.split(",") if x.strip()]
-    unknown = set(tasks) - set(TASKS)
+    unknown = set(tasks) - set(TASKS) - set(EXTRA_TASKS)
     if unknown:
-        ap.error(f"unknown task(s) {sorted(unknown)}; choose from {TASKS}")
+        ap.error(f"unknown task(s) {sorted(unknown)}; choose from {TASKS + EXTRA_TASKS}")
     repeats = min(args.repeats, 3) if args.quick else args.repeats
     budget = min(args.budget, 5.0) if args.quick else args.budget
     naive_budget = args.naive_budget if args.naive_budget is not None else (5.0 if args.quick else 20.0)
@@ -516,7 +547,7 @@ def main(argv: list[str] | None = None) -> int:
     print(HEADER)
     b = Bench(repeats, budget)
     t0 = time.perf_counter()
-    for task in TASKS:
+    for task in TASKS + EXTRA_TASKS:
         if task not in tasks:
             continue
         if task == "pbar":
@@ -527,6 +558,8 @@ def main(argv: list[str] | None = None) -> int:
             task_sweep(b, args.quick, naive_budget)
         elif task == "montecarlo":
             task_montecarlo(b, args.quick)
+        elif task == "abi3":
+            task_abi3(b, args.abi3_wheels, args.abi3_rounds)
     print(f"done in {time.perf_counter() - t0:.0f} s, load average {os.getloadavg()[0]:.2f}")
     if args.json:
         Path(args.json).write_text(json.dumps([row.record() for row in b.rows], indent=2) + "\n")

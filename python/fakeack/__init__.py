@@ -6,6 +6,7 @@ Schedule for Remote State Estimation", with the corrections listed in the README
 """
 
 from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError
+from ._fakeack import __version__ as __version__  # written once, in Cargo.toml
 from .attack import (
     attack_chain,
     balance_residual,
@@ -67,8 +68,6 @@ from .threshold import (
     j_attack_pattern,
     worst_mask,
 )
-
-__version__ = "0.1.0"
 
 __all__ = [
     "FlagInjection",

@@ -25,12 +25,14 @@ __all__ = [
     "simulate",
     "stationary_gth",
     "stationary_structured",
+    "__version__",
 ]
 
 MAX_BUILD_STATES: int
 MAX_VECTOR_STATES: int
 DEFAULT_TOL: float
 DEFAULT_MAX_ITER: int
+__version__: str
 
 class ConvergenceError(ValueError): ...
 

@@ -215,6 +215,25 @@ class SimulationResult:
             f"{self.schedule}, {self.attack}, {self.mode} mode)"
         )
 
+    def _repr_html_(self) -> str:
+        from . import _html
+
+        return _html.key_values(
+            "SimulationResult",
+            [
+                ("J (time average over the horizon)", f"{self.j:.6f} ± {self.stderr:.6f}"),
+                ("runs × steps", f"{self.runs} × {self.horizon}"),
+                ("schedule", self.schedule or "–"),
+                ("attack", self.attack),
+                ("mode, protocol", f"{self.mode}, {self.protocol}"),
+                ("high-power rate", self.high_power_rate),
+                ("flag-ACKs sent per step", self.flags_sent),
+                ("flag-ACKs blocked per step", self.flags_blocked),
+                ("seed", self.seed),
+            ],
+            "± is one standard error across runs; j_k and mean_trace hold the curves.",
+        )
+
 
 class _Progress:
     """A tqdm bar that appears only if a run lasts longer than a second."""

@@ -40,7 +40,7 @@ def energy_ratio(Psi: Any, Delta: Any, delta: Any) -> Fraction:
     -------
     fractions.Fraction
         :math:`p/q` in lowest terms, exact for int, Fraction and decimal-string inputs (floats are
-        read as the simplest fraction that rounds to them; see :func:`fakeack._validate.as_fraction`).
+        read as the simplest fraction that rounds to them, so 0.1 is 1/10).
 
     Raises
     ------

@@ -133,6 +133,18 @@ class Analysis:
     decisions: list[dict[str, Any]] = field(default_factory=list)
     elapsed: float = 0.0
 
+    def __repr__(self) -> str:
+        z0, mu = self.online
+        return (
+            f"Analysis(lam={self.lam:g}, ratio={self.ratio}, z0={z0}, mu={mu:g}, J_offline={self.j_off:.6g}, "
+            f"J_online={self.j_on:.6g}, {len(self.rows)} rows, {len(self.decisions)} decisions)"
+        )
+
+    def _repr_html_(self) -> str:
+        from . import _html
+
+        return _html.analysis(self)
+
 
 def _exact_j_max_curve(s: LinearSystem, lam: float, horizon: int) -> np.ndarray:
     r"""Exact J_k with every flag-ACK blocked.

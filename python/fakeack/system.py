@@ -89,6 +89,69 @@ class LinearSystem:
             arr.setflags(write=False)
         self._A, self._C, self._Q, self._R = a, c, q, r
 
+    @classmethod
+    def from_statespace(
+        cls,
+        sys: Any,
+        Q: Any,
+        R: Any,
+        *,
+        tol: float = _fakeack.DEFAULT_TOL,
+        max_iter: int = _fakeack.DEFAULT_MAX_ITER,
+    ) -> LinearSystem:
+        r"""The system of a discrete-time state-space model, with the noise covariances added.
+
+        Parameters
+        ----------
+        sys : control.StateSpace or object with ``A`` and ``C`` attributes
+            A discrete-time python-control ``StateSpace`` (``dt`` True or positive), a
+            ``scipy.signal.dlti`` state-space model, or any object with ``A`` and ``C``
+            attributes. B and D are not used: the process noise enters the state directly
+            (:math:`x_{k+1} = A x_k + w_k`), so noise that enters through B belongs in Q as
+            :math:`B Q_w B'`.
+        Q : array_like or float
+            Process-noise covariance, ``(n_x, n_x)``.
+        R : array_like or float
+            Measurement-noise covariance, ``(n_y, n_y)``.
+        tol : float, optional
+            As for :class:`LinearSystem`.
+        max_iter : int, optional
+            As for :class:`LinearSystem`.
+
+        Returns
+        -------
+        LinearSystem
+
+        Raises
+        ------
+        TypeError
+            If ``sys`` has no ``A`` or ``C`` attribute.
+        ValueError
+            If ``sys`` is a continuous-time model (the analysis is in discrete time: sample it
+            first, e.g. ``sys.sample(Ts)`` in python-control), or for any reason
+            :class:`LinearSystem` gives.
+
+        Examples
+        --------
+        >>> import types
+        >>> import fakeack as fa
+        >>> model = types.SimpleNamespace(A=[[1.2]], C=[[0.7]])   # e.g. control.ss(1.2, 1, 0.7, 0, dt=1)
+        >>> fa.LinearSystem.from_statespace(model, Q=0.8, R=0.8)
+        LinearSystem(A=1.2, C=0.7, Q=0.8, R=0.8)
+        """
+        missing = [k for k in "AC" if not hasattr(sys, k)]
+        if missing:
+            raise TypeError(
+                f"sys must be a state-space model with A and C attributes; "
+                f"{type(sys).__name__} has no {' or '.join(missing)}"
+            )
+        if _is_continuous(sys):
+            raise ValueError(
+                f"sys is a continuous-time model ({type(sys).__name__}, dt={getattr(sys, 'dt', None)!r}); "
+                "the fake-ACK analysis is in discrete time: sample it first (python-control: sys.sample(Ts))"
+            )
+        return cls(sys.A, sys.C, Q, R, tol=tol, max_iter=max_iter)
+
     # Read-only views: a system is immutable once P̄ is solved.
     @property
     def A(self) -> np.ndarray:
@@ -185,6 +248,21 @@ class LinearSystem:
 
     def _matrices(self) -> tuple[np.ndarray, ...]:
         return (self._A, self._C, self._Q, self._R)
+
+
+def _is_continuous(sys: Any) -> bool:
+    """Whether a state-space object is in continuous time.
+
+    python-control marks continuous time with ``dt == 0`` (True or a positive number is discrete,
+    None unspecified); scipy.signal with the class (``lti`` against ``dlti``, whose continuous
+    models have ``dt`` None). Other objects carry no time base and are taken as discrete.
+    """
+    if type(sys).__module__.startswith("scipy.signal"):
+        from scipy import signal
+
+        return isinstance(sys, signal.lti)
+    dt = getattr(sys, "dt", None)
+    return dt is not None and dt == 0
 
 
 def _core(system: Any) -> Any:

@@ -127,6 +127,32 @@ class BetaSweep:
     def __len__(self) -> int:
         return len(self.r)
 
+    def __repr__(self) -> str:
+        return (
+            f"BetaSweep({len(self)} fractions r/t with t <= {int(self.t.max()) if len(self) else 0}, "
+            f"J_online={self.j_online:.6g}, J_offline={self.j_offline:.6g}, z0={self.z0}, mu={self.mu:g})"
+        )
+
+    def _repr_html_(self) -> str:
+        from . import _html
+
+        above = self.j_attack >= self.j_offline
+        first = f"{self.r[above][0]}/{self.t[above][0]}" if above.any() else None
+        return _html.key_values(
+            "BetaSweep",
+            [
+                ("fractions r/t (lowest terms)", len(self)),
+                ("largest period t", int(self.t.max()) if len(self) else None),
+                ("lam, energy ratio", f"{self.lam:g}, {self.ratio}"),
+                ("online design z0, mu", f"{self.z0}, {self.mu:g}"),
+                ("J_online (no attack)", self.j_online),
+                ("J_offline", self.j_offline),
+                ("J_attack, smallest", float(self.j_attack.min()) if len(self) else None),
+                ("J_attack, largest", float(self.j_attack.max()) if len(self) else None),
+                ("smallest beta with J_attack >= J_offline", first),
+            ],
+        )
+
 
 @dataclass(frozen=True)
 class _Problem:
@@ -205,6 +231,23 @@ class BetaBar:
     j_max: float
     z0: int
     mu: float
+
+    def _repr_html_(self) -> str:
+        from . import _html
+
+        return _html.key_values(
+            "BetaBar: the attacker threshold",
+            [
+                (f"finite (smallest r/t, t <= {self.t_max})", self.finite),
+                ("limit (large-period J_inf = J_offline)", self.limit),
+                ("J_online", self.j_online),
+                ("J_offline", self.j_offline),
+                ("J_max (every flag blocked)", self.j_max),
+                ("online design z0, mu", f"{self.z0}, {self.mu:g}"),
+            ],
+            "Two definitions of the threshold (see fakeack.beta_bar); fakeack.choose_schedule uses the "
+            "limit: against a larger budget the sensor should ignore ACKs and go offline.",
+        )
 
 
 def beta_bar(

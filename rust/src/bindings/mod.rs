@@ -126,6 +126,8 @@ fn raise_core_error(kind: &str) -> PyResult<()> {
 #[pymodule]
 #[pyo3(name = "_fakeack")]
 fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // The package version has one source, Cargo.toml; `fakeack.__version__` reads it from here.
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<system::PySystem>()?;
     m.add_class::<PyAttack>()?;
     m.add("ConvergenceError", m.py().get_type::<ConvergenceError>())?;
