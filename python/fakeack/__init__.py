@@ -26,6 +26,7 @@ from .detection import (
     flag_interval_moments,
     flag_rates,
 )
+from .grid import study_grid
 from .montecarlo import (
     AttackPattern,
     OfflineSchedule,
@@ -72,6 +73,7 @@ __all__ = [
     "estimate_beta",
     "flag_interval_moments",
     "flag_rates",
+    "study_grid",
     "AttackPattern",
     "OfflineSchedule",
     "OnlineSchedule",

@@ -18,6 +18,7 @@ __all__ = [
     "balance_residual",
     "flag_rates",
     "general_attack_chain",
+    "grid_cells",
     "high_power_rate",
     "num_states",
     "offline_schedule",
@@ -114,4 +115,17 @@ def simulate(
     seed: int,
     progress: Callable[[int], object],
     record_runs: bool,
+) -> dict[str, Any]: ...
+def grid_cells(
+    systems: list[LinearSystem],
+    system: npt.NDArray[np.uint64],
+    lam: npt.NDArray[np.float64],
+    p: npt.NDArray[np.uint64],
+    q: npt.NDArray[np.uint64],
+    z0: npt.NDArray[np.uint64],
+    mu: npt.NDArray[np.float64],
+    betas: list[float],
+    family: str,
+    t_max: int,
+    attacks: list[Attack],
 ) -> dict[str, Any]: ...
