@@ -54,11 +54,12 @@ class Block:
 
 
 def cell_seed(seed: int, system: str, lam: float, ratio: Fraction, beta: Fraction) -> int:
-    """The Monte Carlo seed of one cell and budget: a 64-bit hash of the study seed and the
+    """The Monte Carlo seed of one cell and budget: a 62-bit hash of the study seed and the
     cell's coordinates (not its position, so adding grid points leaves other cells' seeds alone).
     """
     key = f"fakeack-grid|{seed}|{system}|{lam.hex()}|{ratio}|{beta}".encode()
-    return int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little")
+    # 62 bits: the largest integer argument fakeack accepts is 2**62.
+    return int.from_bytes(hashlib.blake2b(key, digest_size=8).digest(), "little") >> 2
 
 
 def mc_attack(family: str, beta: Fraction) -> Any:

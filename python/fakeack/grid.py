@@ -212,6 +212,14 @@ def _executor(executor: Any) -> tuple[Any, bool, int]:
             "executor must be None, a concurrent.futures.Executor (e.g. a dask.distributed "
             f"Client's get_executor()) or a dask.distributed.Client, got {type(executor).__name__}"
         )
+    context = getattr(executor, "_mp_context", None)
+    if isinstance(executor, cf.ProcessPoolExecutor) and context is not None:
+        if context.get_start_method() == "fork":
+            raise ValueError(
+                "executor: a ProcessPoolExecutor that forks can deadlock the compiled core's thread "
+                "pool in its workers; create it with mp_context=multiprocessing.get_context('spawn') "
+                "(or 'forkserver')"
+            )
     return executor, False, getattr(executor, "_max_workers", None) or os.cpu_count() or 1
 
 
