@@ -176,9 +176,14 @@ def test_ctrl_c_stops_within_a_second(paper, monkeypatch):
                 fired["thread"].start()
 
     monkeypatch.setattr(mc, "_Progress", SignalOnFirstReport)
-    with pytest.raises(KeyboardInterrupt):
-        # ~10^12 steps: hours if not interrupted.
-        fa.simulate(paper, 0.5, fa.OnlineSchedule(2), 10_000, 10**8, seed=1, progress=False)
+    # Python's own Ctrl-C behaviour, whatever handler an earlier test or library left installed.
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            # ~10^12 steps: hours if not interrupted.
+            fa.simulate(paper, 0.5, fa.OnlineSchedule(2), 10_000, 10**8, seed=1, progress=False)
+    finally:
+        signal.signal(signal.SIGINT, old)
     assert time.monotonic() - fired["t"] < 1.0
     fired["thread"].join()
     # The process is responsive and can simulate again.

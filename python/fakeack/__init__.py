@@ -28,6 +28,7 @@ from .detection import (
     flag_interval_moments,
     flag_rates,
 )
+from .grid import study_grid
 from .montecarlo import (
     AttackPattern,
     OfflineSchedule,
@@ -89,6 +90,7 @@ __all__ = [
     "estimate_beta",
     "flag_interval_moments",
     "flag_rates",
+    "study_grid",
     "AttackPattern",
     "OfflineSchedule",
     "OnlineSchedule",

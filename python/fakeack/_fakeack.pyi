@@ -18,6 +18,7 @@ __all__ = [
     "balance_residual",
     "flag_rates",
     "general_attack_chain",
+    "grid_cells",
     "high_power_rate",
     "num_states",
     "offline_schedule",
@@ -127,3 +128,16 @@ def simulate(
     record_runs: bool,
 ) -> dict[str, Any]: ...
 def raise_core_error(kind: str) -> None: ...
+def grid_cells(
+    systems: list[LinearSystem],
+    system: npt.NDArray[np.uint64],
+    lam: npt.NDArray[np.float64],
+    p: npt.NDArray[np.uint64],
+    q: npt.NDArray[np.uint64],
+    z0: npt.NDArray[np.uint64],
+    mu: npt.NDArray[np.float64],
+    betas: list[float],
+    family: str,
+    t_max: int,
+    attacks: list[Attack],
+) -> dict[str, Any]: ...

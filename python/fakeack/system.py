@@ -55,7 +55,7 @@ class LinearSystem:
     0.924458
     """
 
-    __slots__ = ("_A", "_C", "_Q", "_R", "_core")
+    __slots__ = ("_A", "_C", "_Q", "_R", "_core", "_tol", "_max_iter")
 
     def __init__(
         self,
@@ -88,6 +88,12 @@ class LinearSystem:
         for arr in (a, c, q, r):
             arr.setflags(write=False)
         self._A, self._C, self._Q, self._R = a, c, q, r
+        self._tol, self._max_iter = tol, max_iter
+
+    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+        # Pickled as its matrices and solver settings (for process pools and Dask workers); the
+        # copy solves for P̄ again, deterministically, so it computes exactly what this one does.
+        return (_rebuild, (*self._matrices(), self._tol, self._max_iter))
 
     @classmethod
     def from_statespace(
@@ -263,6 +269,11 @@ def _is_continuous(sys: Any) -> bool:
         return isinstance(sys, signal.lti)
     dt = getattr(sys, "dt", None)
     return dt is not None and dt == 0
+
+
+def _rebuild(A: Any, C: Any, Q: Any, R: Any, tol: float, max_iter: int) -> LinearSystem:
+    """Unpickle a :class:`LinearSystem`."""
+    return LinearSystem(A, C, Q, R, tol=tol, max_iter=max_iter)
 
 
 def _core(system: Any) -> Any:

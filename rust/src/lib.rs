@@ -54,6 +54,7 @@ pub mod attack;
 pub mod chain;
 pub mod error;
 pub mod general;
+pub mod grid;
 mod linalg;
 pub mod montecarlo;
 pub mod online;

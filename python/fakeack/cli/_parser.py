@@ -8,7 +8,7 @@ from collections.abc import Callable
 from .. import __version__
 from .._validate import MODES, PROTOCOLS
 from ..study import DEFAULT_HORIZON, DEFAULT_OUT, DEFAULT_RUNS, DEFAULT_SEED, DEFAULT_T_MAX
-from . import analyze, reproduce, simulate, sweep
+from . import analyze, grid, reproduce, simulate, sweep
 
 __all__ = ["build_parser"]
 
@@ -199,6 +199,36 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=simulate.run)
 
 
+def _add_grid(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "grid",
+        formatter_class=_Formatter,
+        help="a parameter study over (lam, energy ratio, beta) from a TOML config",
+        description="Every cost, both thresholds and the decision over a grid of systems, lam, energy "
+        "ratios and budgets (fakeack.study_grid), written to DIR/study.zarr block by block, DIR/study.nc "
+        "and heat maps per system. Needs pip install 'fakeack[grid]'. 'fakeack grid --example' prints a "
+        "config to start from.",
+    )
+    parser.add_argument(
+        "config", nargs="?", metavar="CONFIG.toml", help="the config file with a [grid] section"
+    )
+    parser.add_argument("--example", action="store_true", help="print the example config and exit")
+    parser.add_argument("--out", metavar="DIR", help="directory for study.zarr, study.nc and the figures")
+    where = parser.add_mutually_exclusive_group()
+    where.add_argument(
+        "--workers",
+        type=_int_at_least(1),
+        metavar="N",
+        help="run on a dask LocalCluster of N worker processes",
+    )
+    where.add_argument("--scheduler", metavar="ADDRESS", help="run on a running dask scheduler (tcp://host:8786)")
+    parser.add_argument(
+        "--resume", action="store_true", help="finish DIR/study.zarr, keeping the blocks already complete"
+    )
+    parser.add_argument("--no-figures", action="store_true", help="write the store and study.nc only")
+    parser.set_defaults(func=grid.run)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``fakeack`` command.
 
@@ -215,6 +245,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"fakeack {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_reproduce, _add_analyze, _add_sweep, _add_simulate):
+    for add in (_add_reproduce, _add_analyze, _add_sweep, _add_simulate, _add_grid):
         add(sub)
     return parser

@@ -73,10 +73,7 @@ impl Segments {
             return Err(Error::invalid("w", format!("needs {need} weighted traces")));
         }
         let mass: Vec<f64> = (0..need).map(|tau| walk.c_pow(tau as u64)).collect();
-        let (mut w, mut m) = (
-            segment_sums(&wtr[..need], z0, mu, kmax),
-            segment_sums(&mass, z0, mu, kmax),
-        );
+        let (mut w, mut m) = segment_sums(&wtr[..need], &mass, z0, mu, kmax);
         scale_by_block_factor(&mut w, walk);
         scale_by_block_factor(&mut m, walk);
         Ok(Segments {
@@ -304,15 +301,17 @@ pub fn first_r_j(t: f64, w0: f64, a_r: f64, m0: f64, b_r: f64) -> f64 {
     num / (t * m0 + b_r)
 }
 
-/// Segment sums Σ_i C(k,i) μ^(k-i) (1-μ)^i Z_k(k z0 + i) of a per-τ weight `v`, where
-/// Z_0(s) = Σ_{z=0..z0} v[s+z] + (1-μ) v[s+z0+1] and Z_k(s) = Z_0(s) - v[s] for k ≥ 1.
-fn segment_sums(v: &[f64], z0: u64, mu: f64, kmax: u64) -> Vec<f64> {
+/// Segment sums Σ_i C(k,i) μ^(k-i) (1-μ)^i Z_k(k z0 + i) of two per-τ weights `v` and `u` (the
+/// weighted traces and the masses), where Z_0(s) = Σ_{z=0..z0} v[s+z] + (1-μ) v[s+z0+1] and
+/// Z_k(s) = Z_0(s) - v[s] for k ≥ 1. Both share one pass over the binomial weights (O(kmax²)
+/// for μ < 1); each sum adds its terms in the order of i, as two separate passes would.
+fn segment_sums(v: &[f64], u: &[f64], z0: u64, mu: f64, kmax: u64) -> (Vec<f64>, Vec<f64>) {
     let z = z0 as usize;
-    let pre = prefix(v);
-    let zsum = |s: usize, k: usize| {
+    let (pre_v, pre_u) = (prefix(v), prefix(u));
+    let zsum = |pre: &[f64], x: &[f64], s: usize, k: usize| {
         let first = if k == 0 { s } else { s + 1 };
         let tail = if mu < 1.0 {
-            (1.0 - mu) * v[s + z + 1]
+            (1.0 - mu) * x[s + z + 1]
         } else {
             0.0
         };
@@ -325,36 +324,49 @@ fn segment_sums(v: &[f64], z0: u64, mu: f64, kmax: u64) -> Vec<f64> {
             sum
         }
     };
-    let mut out = Vec::with_capacity(kmax as usize + 1);
+    let n = kmax as usize + 1;
+    let (mut out_v, mut out_u) = (Vec::with_capacity(n), Vec::with_capacity(n));
     if mu == 1.0 {
-        for k in 0..=kmax as usize {
-            out.push(zsum(k * z, k));
+        for k in 0..n {
+            out_v.push(zsum(&pre_v, v, k * z, k));
+            out_u.push(zsum(&pre_u, u, k * z, k));
         }
-        return out;
+        return (out_v, out_u);
     }
-    // Binomial law of the number of long intervals, advanced one segment at a time.
-    let mut binom = vec![1.0];
-    for k in 0..=kmax as usize {
-        let total: f64 = binom
+    // Binomial law of the number of long intervals, advanced one segment at a time:
+    // next[i] = μ binom[i] + (1-μ) binom[i-1] (terms >= 0, so no signed zero to mind).
+    let mut binom = Vec::with_capacity(n + 1);
+    let mut next = Vec::with_capacity(n + 1);
+    binom.push(1.0);
+    for k in 0..n {
+        let term = |pre: &[f64], x: &[f64], i: usize, b: f64| {
+            if b == 0.0 {
+                0.0
+            } else {
+                b * zsum(pre, x, k * z + i, k)
+            }
+        };
+        let tv: f64 = binom
             .iter()
             .enumerate()
-            .map(|(i, b)| {
-                if *b == 0.0 {
-                    0.0
-                } else {
-                    b * zsum(k * z + i, k)
-                }
-            })
+            .map(|(i, &b)| term(&pre_v, v, i, b))
             .sum();
-        out.push(total);
-        let mut next = vec![0.0; binom.len() + 1];
-        for (i, b) in binom.iter().enumerate() {
-            next[i] += mu * b;
-            next[i + 1] += (1.0 - mu) * b;
+        let tu: f64 = binom
+            .iter()
+            .enumerate()
+            .map(|(i, &b)| term(&pre_u, u, i, b))
+            .sum();
+        out_v.push(tv);
+        out_u.push(tu);
+        next.clear();
+        next.push(mu * binom[0]);
+        for i in 1..binom.len() {
+            next.push((1.0 - mu) * binom[i - 1] + mu * binom[i]);
         }
-        binom = next;
+        next.push((1.0 - mu) * binom[binom.len() - 1]);
+        std::mem::swap(&mut binom, &mut next);
     }
-    out
+    (out_v, out_u)
 }
 
 /// The most damaging mask with `blocked` of `t` flag-ACKs blocked (exhaustive, t <= 24), its J,

@@ -86,3 +86,55 @@ fn flag_rates_match_online_rate() {
         assert!((sent - expect).abs() < 1e-14 && (delivered - expect).abs() < 1e-14);
     }
 }
+
+/// The one-vector, allocating form that the two-vector pass replaced.
+fn segment_sums_reference(v: &[f64], z0: u64, mu: f64, kmax: u64) -> Vec<f64> {
+    let z = z0 as usize;
+    let pre = prefix(v);
+    let zsum = |s: usize, k: usize| {
+        let first = if k == 0 { s } else { s + 1 };
+        pre[s + z + 1] - pre[first] + (1.0 - mu) * v[s + z + 1]
+    };
+    let mut out = Vec::new();
+    let mut binom = vec![1.0];
+    for k in 0..=kmax as usize {
+        let total: f64 = binom
+            .iter()
+            .enumerate()
+            .map(|(i, b)| {
+                if *b == 0.0 {
+                    0.0
+                } else {
+                    b * zsum(k * z + i, k)
+                }
+            })
+            .sum();
+        out.push(total);
+        let mut next = vec![0.0; binom.len() + 1];
+        for (i, b) in binom.iter().enumerate() {
+            next[i] += mu * b;
+            next[i + 1] += (1.0 - mu) * b;
+        }
+        binom = next;
+    }
+    out
+}
+
+#[test]
+fn one_pass_segment_sums_keep_every_bit() {
+    for &mu in &[1.0, 0.0, 0.3, 0.5672848311935325, 0.999] {
+        for &(lam, z0, kmax) in &[(0.5, 2u64, 59u64), (0.3, 5, 40), (0.8, 1, 100)] {
+            let n = tau_needed(z0, kmax) as usize + 1;
+            let w = wtr(lam, n);
+            let m: Vec<f64> = (0..n).map(|i| (1.0 - lam).powi(i as i32)).collect();
+            let (sw, sm) = segment_sums(&w, &m, z0, mu, kmax);
+            let (rw, rm) = (
+                segment_sums_reference(&w, z0, mu, kmax),
+                segment_sums_reference(&m, z0, mu, kmax),
+            );
+            let bits = |x: &[f64]| x.iter().map(|y| y.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&sw), bits(&rw), "mu={mu} z0={z0}");
+            assert_eq!(bits(&sm), bits(&rm), "mu={mu} z0={z0}");
+        }
+    }
+}

@@ -1,0 +1,129 @@
+//! Parameter studies: one block of cells of `fakeack.study_grid` ([`crate::grid`]).
+
+use numpy::ndarray::Array2;
+use numpy::{IntoPyArray, PyReadonlyArray1};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use super::system::PySystem;
+use super::PyAttack;
+use crate::grid::{self, Cell, CellResult, Family, Study};
+use crate::{LinearSystem, OnlineDesign, Ratio};
+
+fn family_of(name: &str) -> PyResult<Family> {
+    match name {
+        "periodic" => Ok(Family::Periodic),
+        "random" => Ok(Family::Random),
+        _ => Err(PyValueError::new_err(format!(
+            "family: unknown family {name:?} (expected 'periodic' or 'random')"
+        ))),
+    }
+}
+
+/// The cells from flat arrays; `z0 == 0` means no online design.
+fn cells_of(
+    system: &[u64],
+    lam: &[f64],
+    p: &[u64],
+    q: &[u64],
+    z0: &[u64],
+    mu: &[f64],
+) -> PyResult<Vec<Cell>> {
+    let n = system.len();
+    if [lam.len(), p.len(), q.len(), z0.len(), mu.len()]
+        .iter()
+        .any(|&l| l != n)
+    {
+        return Err(PyValueError::new_err(
+            "cells: system, lam, p, q, z0 and mu must have the same length",
+        ));
+    }
+    (0..n)
+        .map(|i| {
+            Ok(Cell {
+                system: system[i] as usize,
+                lam: lam[i],
+                ratio: Ratio::new(p[i], q[i])?,
+                design: match z0[i] {
+                    0 => None,
+                    z => Some(OnlineDesign::new(z, mu[i])?),
+                },
+            })
+        })
+        .collect()
+}
+
+fn column(out: &[CellResult], f: impl Fn(&CellResult) -> f64) -> Vec<f64> {
+    out.iter().map(f).collect()
+}
+
+fn matrix(out: &[CellResult], width: usize, f: impl Fn(&CellResult) -> &Vec<f64>) -> Array2<f64> {
+    Array2::from_shape_fn((out.len(), width), |(i, j)| f(&out[i])[j])
+}
+
+/// Every quantity of `fakeack.study_grid` for a block of cells, as a dict of arrays.
+#[pyfunction]
+#[pyo3(signature = (systems, system, lam, p, q, z0, mu, betas, family, t_max, attacks))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn grid_cells<'py>(
+    py: Python<'py>,
+    systems: Vec<Bound<'py, PySystem>>,
+    system: PyReadonlyArray1<'py, u64>,
+    lam: PyReadonlyArray1<'py, f64>,
+    p: PyReadonlyArray1<'py, u64>,
+    q: PyReadonlyArray1<'py, u64>,
+    z0: PyReadonlyArray1<'py, u64>,
+    mu: PyReadonlyArray1<'py, f64>,
+    betas: Vec<f64>,
+    family: &str,
+    t_max: u64,
+    attacks: Vec<Bound<'py, PyAttack>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let cells = cells_of(
+        &system.as_array().to_vec(),
+        &lam.as_array().to_vec(),
+        &p.as_array().to_vec(),
+        &q.as_array().to_vec(),
+        &z0.as_array().to_vec(),
+        &mu.as_array().to_vec(),
+    )?;
+    let study = Study {
+        betas,
+        family: family_of(family)?,
+        t_max,
+        attacks: attacks.iter().map(|a| a.get().inner.clone()).collect(),
+    };
+    let refs: Vec<&LinearSystem> = systems.iter().map(|s| &s.get().inner).collect();
+    let out = py.detach(|| grid::evaluate(&refs, &cells, &study))?;
+    let d = PyDict::new(py);
+    d.set_item("j_offline", column(&out, |r| r.j_offline).into_pyarray(py))?;
+    d.set_item("j_online", column(&out, |r| r.j_online).into_pyarray(py))?;
+    d.set_item("j_max", column(&out, |r| r.j_max).into_pyarray(py))?;
+    let limit = column(&out, |r| r.beta_bar_limit);
+    d.set_item("beta_bar_limit", limit.into_pyarray(py))?;
+    let random = column(&out, |r| r.beta_bar_random);
+    d.set_item("beta_bar_random", random.into_pyarray(py))?;
+    let (fr, ft): (Vec<u32>, Vec<u32>) = out
+        .iter()
+        .map(|r| r.beta_bar_finite.unwrap_or((0, 0)))
+        .unzip();
+    d.set_item("finite_r", fr.into_pyarray(py))?;
+    d.set_item("finite_t", ft.into_pyarray(py))?;
+    let nb = study.betas.len();
+    d.set_item(
+        "j_attack",
+        matrix(&out, nb, |r| &r.j_attack).into_pyarray(py),
+    )?;
+    let na = study.attacks.len();
+    d.set_item(
+        "j_listed",
+        matrix(&out, na, |r| &r.j_listed).into_pyarray(py),
+    )?;
+    let errors: Vec<String> = out
+        .iter()
+        .map(|r| r.error.as_ref().map(|e| e.to_string()).unwrap_or_default())
+        .collect();
+    d.set_item("error", errors)?;
+    Ok(d)
+}
