@@ -33,7 +33,8 @@ Tasks (``--tasks``, default all):
   at t_max = 1e4 most chains would not even fit in memory. The row's peer says "extrapolated" and
   its note gives the sample and the model.
 * ``montecarlo``: ``fa.simulate`` (covariance and state modes; paper's system, online z0 = 2,
-  attack "first 1 of every 5") against the vectorised numpy baseline ``numpy_protocol.simulate``,
+  attack "first 1 of every 5"; in covariance mode also ``RandomBlocking(0.2)`` and
+  ``FlagInjection(0.05)``) against the vectorised numpy baseline ``numpy_protocol.simulate``,
   same runs and horizon; the two J must agree within 4 combined standard errors. fakeack uses every
   core, numpy one. Skipped if the compiled module has no ``simulate`` yet.
 * ``abi3`` (only when asked for, with ``--abi3-wheels ABI3.whl SPECIFIC.whl``): the shipped abi3
@@ -423,17 +424,21 @@ def task_montecarlo(b: Bench, quick: bool) -> None:
             )
         return
     sys_ = fa.LinearSystem(*PAPER)
-    z0, r, t = 2, 1, 5
-    j_exact = fa.j_attack(sys_, LAM, z0, r, t)
-    plans = (
-        (("covariance", 20_000, 500), ("state", 4_096, 500))
-        if quick
-        else (("covariance", 100_000, 1_000), ("state", 20_000, 1_000))
-    )
-    for mode, runs, horizon in plans:
-        size = f"{mode} {runs}x{horizon}"
+    z0 = 2
+    # (label, fakeack's attack, the baseline's attack arguments)
+    periodic = ("1/5", fa.PeriodicBlocking(1, 5), dict(mask=[1, 0, 0, 0, 0]))
+    random_ = ("random:0.2", fa.RandomBlocking(0.2), dict(beta=0.2))
+    inject = ("inject:0.05", fa.FlagInjection(0.05), dict(gamma=0.05))
+    cov, state = (20_000, 500), (4_096, 500)
+    if not quick:
+        cov, state = (100_000, 1_000), (20_000, 1_000)
+    plans = [("covariance", *cov, periodic), ("state", *state, periodic)]
+    plans += [("covariance", *cov, random_), ("covariance", *cov, inject)]
+    for mode, runs, horizon, (label, attack, baseline_attack) in plans:
+        size = f"{mode} {runs}x{horizon}" + ("" if label == "1/5" else f" {label}")
+        j_exact = fa.j_attack(sys_, LAM, z0, attack=attack)
 
-        def run_fa(mode=mode, runs=runs, horizon=horizon):
+        def run_fa(mode=mode, runs=runs, horizon=horizon, attack=attack):
             return fa.simulate(
                 sys_,
                 LAM,
@@ -441,21 +446,21 @@ def task_montecarlo(b: Bench, quick: bool) -> None:
                 horizon=horizon,
                 runs=runs,
                 seed=1,
-                attack=(r, t),
+                attack=attack,
                 mode=mode,
                 progress=False,
             )
 
-        def run_np(mode=mode, runs=runs, horizon=horizon):
+        def run_np(mode=mode, runs=runs, horizon=horizon, baseline_attack=baseline_attack):
             return npp.simulate(
                 *PAPER,
                 lam=LAM,
                 z0=z0,
-                mask=[1] * r + [0] * (t - r),
                 horizon=horizon,
                 runs=runs,
                 seed=1,
                 mode=mode,
+                **baseline_attack,
             )
 
         t_fa, res_fa = b.time(run_fa)

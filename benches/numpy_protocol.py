@@ -15,8 +15,11 @@ the packet arrives iff high power or a Bernoulli(λ) success; τ = 0 on arrival 
 remote covariance is P̄ on arrival, h(P_{k-1}) otherwise, so Tr P_k = Tr h^τ(P̄). Online, the
 detector counts zero ACKs since its last reset or arrival and sends a flag-ACK when they reach the
 memory length L (z0 with probability μ, else z0 + 1, drawn every step), then resets; the attacker
-drops the flag iff ``mask[counter]`` and advances its counter mod ``len(mask)`` on every flag; a
-delivered flag makes the next step high power. Offline, step k uses ``pattern[(k-1) % len]``.
+drops the flag iff ``mask[counter]`` and advances its counter mod ``len(mask)`` on every flag (or,
+with ``beta``, drops each flag independently with probability β, keeping no counter); with
+``gamma`` it sends a forged flag packet with probability γ on each step on which the detector
+sends none; a delivered or forged flag makes the next step high power. Offline, step k uses
+``pattern[(k-1) % len]``.
 
 State mode simulates the errors with Gaussian noise: the sensor's steady-state Kalman filter error
 e^s_k = (I-KC)(A e^s_{k-1} + w_{k-1}) - K v_k (e^s_0 ~ N(0, P̄)) and the remote error e_k = e^s_k on
@@ -27,6 +30,8 @@ Usage::
     from numpy_protocol import simulate
     res = simulate(1.2, 0.7, 0.8, 0.8, lam=0.5, z0=2, mask=[1, 0, 0, 0, 0], horizon=1000, runs=10**5)
     res.j, res.stderr
+    simulate(1.2, 0.7, 0.8, 0.8, lam=0.5, z0=2, beta=0.2, horizon=1000, runs=10**5)    # RandomBlocking(0.2)
+    simulate(1.2, 0.7, 0.8, 0.8, lam=0.5, z0=2, gamma=0.05, horizon=1000, runs=10**5)  # FlagInjection(0.05)
 """
 
 from __future__ import annotations
@@ -99,6 +104,7 @@ class BaselineResult:
     high_power_rate: float
     flags_sent: float
     flags_blocked: float
+    flags_forged: float
     runs: int
     horizon: int
     seconds: float
@@ -115,6 +121,8 @@ def simulate(
     z0: int | None = None,
     mu: float = 1.0,
     mask=None,
+    beta: float | None = None,
+    gamma: float = 0.0,
     horizon: int = 1000,
     runs: int = 10_000,
     seed: int = 1,
@@ -125,8 +133,9 @@ def simulate(
 
     Give either ``pattern`` (offline schedule, a 0/1 period starting with 1) or ``z0`` (online
     schedule, with memory mix ``mu``); ``mask`` (online only) is the attacker's periodic blocking
-    mask over its flag counter, e.g. ``[1]*r + [0]*(t-r)``. ``mode`` is ``"covariance"`` or
-    ``"state"``.
+    mask over its flag counter, e.g. ``[1]*r + [0]*(t-r)``, or ``beta`` blocks each flag
+    independently with that probability; ``gamma`` forges a flag with that probability on each
+    step without a genuine one (beside either). ``mode`` is ``"covariance"`` or ``"state"``.
     """
     t0 = time.perf_counter()
     A, C, Q, R = map(_mat, (A, C, Q, R))
@@ -145,8 +154,14 @@ def simulate(
         mask_arr = None if mask is None else np.asarray(mask, dtype=bool)
         if mask_arr is not None and mask_arr.size == 0:
             raise ValueError("mask must not be empty")
+        if mask_arr is not None and beta is not None:
+            raise ValueError("give at most one of mask and beta")
+        if not (beta is None or 0.0 <= beta <= 1.0) or not 0.0 <= gamma <= 1.0:
+            raise ValueError("beta and gamma must lie in [0, 1]")
         memory = z0 if mu == 1.0 else z0 + 1
-        if mask_arr is None:
+        if beta is not None and beta > 0.0:
+            reach = horizon  # any number of flags in a row may be blocked
+        elif mask_arr is None:
             reach = memory
         elif mask_arr.all():
             reach = horizon
@@ -154,8 +169,8 @@ def simulate(
             reach = memory * (_longest_cyclic_run(mask_arr) + 1)
         mu_draw = 0.0 < mu < 1.0
     else:
-        if mask is not None:
-            raise ValueError("an offline schedule sends no flag-ACK: mask applies to online only")
+        if mask is not None or beta is not None or gamma:
+            raise ValueError("an offline schedule sends no flag-ACK: mask, beta and gamma apply to online only")
         pat = np.asarray(pattern, dtype=np.int8)
         if pat.ndim != 1 or pat.size == 0 or pat[0] != 1 or not np.isin(pat, (0, 1)).all():
             raise ValueError("pattern must be a non-empty 0/1 sequence starting with 1")
@@ -167,6 +182,10 @@ def simulate(
     rng = np.random.Generator(np.random.SFC64(seed))
     lam32 = np.float32(lam)
     mu32 = np.float32(mu)
+    beta32 = np.float32(0.0 if beta is None else beta)
+    gamma32 = np.float32(gamma)
+    blocking_random = online and beta is not None
+    forging = online and gamma > 0.0
     i32 = np.int32
 
     # Protocol state, one entry per run.
@@ -179,11 +198,12 @@ def simulate(
     flag = np.empty(runs, dtype=bool)
     short = np.empty(runs, dtype=bool)
     drop = np.empty(runs, dtype=bool)
+    fake = np.empty(runs, dtype=bool)
     tmp_b = np.empty(runs, dtype=bool)
     x = np.empty(runs)
     run_sum = np.zeros(runs)
     mean_trace = np.empty(horizon)
-    sent = blocked = high = 0
+    sent = blocked = forged = high = 0
     mask_i = None if mask_arr is None else mask_arr.astype(bool)
     period = 0 if mask_arr is None else mask_arr.size
 
@@ -210,7 +230,7 @@ def simulate(
     if mode == "state":
         # Keep each chunk of Gaussian draws near 32 MB.
         chunk = max(1, min(chunk, (1 << 22) // (runs * max(rq, m))))
-    lucky_c = shortc = noise_w = noise_v = None
+    lucky_c = shortc = blockc = forgec = noise_w = noise_v = None
     for k in range(horizon):
         c = k % chunk
         if c == 0:
@@ -218,6 +238,10 @@ def simulate(
             lucky_c = rng.random((steps, runs), dtype=np.float32) < lam32
             if mu_draw:
                 shortc = rng.random((steps, runs), dtype=np.float32) < mu32
+            if blocking_random:
+                blockc = rng.random((steps, runs), dtype=np.float32) < beta32
+            if forging:
+                forgec = rng.random((steps, runs), dtype=np.float32) < gamma32
             if mode == "state":
                 noise_w = rng.standard_normal((steps, runs, rq))
                 noise_v = rng.standard_normal((steps, runs, m))
@@ -238,8 +262,9 @@ def simulate(
         if online:
             if mu_draw:
                 short[:] = shortc[c]
-            if mask_i is None:
-                # Every flag is delivered and followed by an arrival: the zero count is τ.
+            if mask_i is None and not blocking_random:
+                # Every flag (genuine or forged) is delivered and followed by an arrival: the
+                # zero count is τ.
                 np.greater_equal(tau, z0 if mu_draw else memory, out=flag)
                 if mu_draw:
                     np.logical_and(flag, short, out=flag)
@@ -258,14 +283,23 @@ def simulate(
                     np.greater_equal(zeros, memory, out=flag)
                 np.logical_not(flag, out=tmp_b)
                 zeros *= tmp_b
-                np.take(mask_i, counter, out=drop)
-                np.logical_and(drop, flag, out=drop)
-                counter += flag
-                np.not_equal(counter, period, out=tmp_b)
-                counter *= tmp_b
+                if blocking_random:
+                    np.logical_and(blockc[c], flag, out=drop)
+                else:
+                    np.take(mask_i, counter, out=drop)
+                    np.logical_and(drop, flag, out=drop)
+                    counter += flag
+                    np.not_equal(counter, period, out=tmp_b)
+                    counter *= tmp_b
                 np.logical_not(drop, out=tmp_b)
                 np.logical_and(flag, tmp_b, out=hi)
                 blocked += int(np.count_nonzero(drop))
+            if forging:
+                # A forged flag packet where the detector sent none.
+                np.logical_not(flag, out=fake)
+                np.logical_and(fake, forgec[c], out=fake)
+                np.logical_or(hi, fake, out=hi)
+                forged += int(np.count_nonzero(fake))
             sent += int(np.count_nonzero(flag))
         # Estimation error.
         if mode == "covariance":
@@ -299,8 +333,8 @@ def simulate(
         stderr = float("inf")
     steps = runs * horizon
     if online:
-        # Δ at k = 1 and after every delivered flag except one at the last step.
-        high = runs + (sent - blocked) - int(np.count_nonzero(hi))
+        # Δ at k = 1 and after every delivered or forged flag except one at the last step.
+        high = runs + (sent - blocked + forged) - int(np.count_nonzero(hi))
     return BaselineResult(
         j=j,
         stderr=stderr,
@@ -309,6 +343,7 @@ def simulate(
         high_power_rate=high / steps,
         flags_sent=sent / steps,
         flags_blocked=blocked / steps,
+        flags_forged=forged / steps,
         runs=runs,
         horizon=horizon,
         seconds=time.perf_counter() - t0,

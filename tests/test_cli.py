@@ -61,7 +61,8 @@ def fake_simulate(monkeypatch):
 
     def fake(core, lam, kind, p, q, z0, mu, attack, mode, protocol, horizon, runs, seed, bar, *rest):
         j = np.full(horizon, 5.0)
-        return dict(j_k=j, mean_trace=j, j=5.0, stderr=0.01, high_power_rate=0.1, flags_sent=0.1, flags_blocked=0.0)
+        return dict(j_k=j, mean_trace=j, j=5.0, stderr=0.01, high_power_rate=0.1, flags_sent=0.1, flags_blocked=0.0,
+                    flags_forged=0.0)
 
     monkeypatch.setattr(fa._fakeack, "simulate", fake, raising=False)
 
@@ -280,6 +281,22 @@ def test_simulate_real(capsys):
     d = json.loads(out)
     assert abs(d["j"] - d["exact_j_h"]) <= 4 * d["stderr"]
     assert d["attack"] == "2/3" and d["runs"] == 2000 and len(d["mean_trace"]) == 40
+
+
+@needs_simulate
+@pytest.mark.parametrize("spelling, forged", [("random:0.3", False), ("inject:0.1", True),
+                                              ("inject:0.1+random:0.3", True)])
+def test_simulate_other_attacks(capsys, spelling, forged):
+    rc, out, _ = run(capsys, "simulate", "--attack", spelling, "--runs", 2000, "--horizon", 60, "--seed", 5)
+    assert rc == 0
+    attack = fa.attacks.as_attack(spelling)
+    assert f"attack {spelling} ({attack})" in out.splitlines()[0]
+    assert ("forged" in out) == forged
+    rc, out, _ = run(capsys, "simulate", "--attack", spelling, "--runs", 2000, "--horizon", 60, "--seed", 5, "--json")
+    d = json.loads(out)
+    assert d["attack"] == spelling and abs(d["j"] - d["exact_j_h"]) <= 4 * d["stderr"]
+    assert (d["flags_forged"] > 0) == forged
+    assert d["stationary_j"] == pytest.approx(fa.j_attack(fa.LinearSystem(**PAPER), 0.5, 2, attack=attack))
 
 
 # ------------------------------------------------------------------------------ config and analyze

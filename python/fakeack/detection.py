@@ -273,7 +273,9 @@ def detection_rates(
 
     Simulates ``runs`` attack-free and ``runs`` attacked observation windows of ``n_steps`` steps
     with :func:`fakeack.simulate` (the flag process does not depend on the plant) and applies the
-    test to each window's delivered flag count.
+    test to each window's count of flag-ACKs delivered to the sensor. Forged flag-ACKs
+    (:class:`fakeack.FlagInjection`) count as delivered: the sensor cannot tell them from genuine
+    ones, which is how :func:`fakeack.rate_matching_attack` hides from the test.
 
     Parameters
     ----------
@@ -281,8 +283,10 @@ def detection_rates(
         Arrival probability at low power.
     z0 : int
         Memory length of the event detector.
-    attack : PeriodicBlocking, MaskBlocking or (r, t)
-        The attack to detect.
+    attack : attack, (r, t) or str
+        The attack to detect: :class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
+        :class:`fakeack.RandomBlocking` or :class:`fakeack.FlagInjection` (its ``beta`` is that of
+        its blocking part), or a spelling such as ``"1/5"`` or ``"inject:0.04+random:0.2"``.
     n_steps : int, optional
         Observation window in steps (default 1000).
     runs : int, optional

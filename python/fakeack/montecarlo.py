@@ -194,11 +194,12 @@ class SimulationResult:
     stderr: float
     """Standard error of ``j`` across runs."""
     high_power_rate: float
-    """Fraction of steps at high power Δ."""
+    """Fraction of steps at high power Δ: the first step and every step after a flag-ACK reached
+    the sensor, genuine or forged."""
     flags_sent: float
-    """Flag-ACKs sent by the detector per step."""
+    """Genuine flag-ACKs sent by the detector per step."""
     flags_blocked: float
-    """Flag-ACKs blocked by the attacker per step."""
+    """Genuine flag-ACKs blocked (Type B) or flipped to 0 (Type A) by the attacker per step."""
     runs: int
     horizon: int
     seed: int
@@ -207,7 +208,12 @@ class SimulationResult:
     schedule: str = field(default="")
     attack: str = field(default="none")
     delivered_per_run: np.ndarray | None = field(default=None, repr=False)
-    """Flag-ACKs delivered to the sensor in each run (only with ``record_runs=True``)."""
+    """Flag-ACKs delivered to the sensor in each run, genuine or forged (the sensor cannot tell
+    them apart); only with ``record_runs=True``."""
+    flags_forged: float = 0.0
+    """Flag-ACKs forged by the attacker per step (:class:`fakeack.FlagInjection`; Type B: a forged
+    packet, Type A: an ACK bit flipped to 1). Flag-ACKs reaching the sensor per step:
+    ``flags_sent - flags_blocked + flags_forged``."""
 
     def __str__(self) -> str:
         return (
@@ -280,7 +286,11 @@ def simulate(
     formula. Each step the sensor picks Δ (always arrives) or δ (arrives with probability
     :math:`\lambda`); the remote estimator follows eq. (7)-(8); the event detector keeps the ACK
     memory (z0 bits with probability μ, else z0+1; reset after each flag-ACK); the attacker blocks
-    flag-ACKs per its mask. Runs start from the paper's initial condition.
+    flag-ACKs per its mask (:class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`) or
+    independently with probability β (:class:`fakeack.RandomBlocking`), and a
+    :class:`fakeack.FlagInjection` forges a flag-ACK with probability γ on each step on which the
+    detector sends none, after which the sensor uses Δ. Runs start from the paper's initial
+    condition.
 
     Parameters
     ----------
@@ -294,22 +304,26 @@ def simulate(
         Independent runs (default 100000, as in the paper). Memory does not grow with runs.
     seed : int, optional
         Results depend only on the seed, not on the number of threads.
-    attack : None, PeriodicBlocking, MaskBlocking or (r, t), optional
-        Fake-ACK attack (online schedules only).
+    attack : None, attack, (r, t) or str, optional
+        Fake-ACK attack (online schedules only): :class:`fakeack.PeriodicBlocking`,
+        :class:`fakeack.MaskBlocking`, :class:`fakeack.RandomBlocking`,
+        :class:`fakeack.FlagInjection`, or any spelling :func:`fakeack.attacks.as_attack` reads
+        (``"1/5"``, ``"random:0.3"``, ``"inject:0.1+random:0.3"``).
     mode : {"covariance", "state"}
         ``"covariance"`` tracks the holding time and averages :math:`\mathrm{Tr}\,P_k`;
         ``"state"`` simulates Gaussian noise, the sensor's steady-state Kalman filter and the
         remote estimator, and averages the squared estimation error (the error dynamics are
         simulated directly, so unstable A never overflows).
     protocol : {"B", "A"}
-        Type B: a flag packet that the attacker drops; Type A: a bit every step that the attacker
-        flips. The statistics are identical (Sec. IV-A).
+        Type B: a flag packet that the attacker drops (or forges); Type A: a bit every step that
+        the attacker flips (1 to 0 to block, 0 to 1 to forge). The statistics are identical
+        (Sec. IV-A), draw for draw.
     progress : bool or None
         Show a tqdm bar for runs over a second; ``None`` (default) shows it only on a terminal.
     record_runs : bool
-        Also return each run's count of delivered flag-ACKs (``delivered_per_run``; 8 bytes per
-        run, the one output whose memory grows with ``runs``), as used by
-        :func:`fakeack.detection_rates`.
+        Also return each run's count of flag-ACKs delivered to the sensor, genuine or forged
+        (``delivered_per_run``; 8 bytes per run, the one output whose memory grows with
+        ``runs``), as used by :func:`fakeack.detection_rates`.
 
     Returns
     -------
@@ -322,7 +336,9 @@ def simulate(
 
     Covariance mode simulates 256 runs at once as the bit lanes of four machine words whenever the
     holding time is bounded by 32 (and the memory under attack too) and the attack mask has at
-    most four runs of ones; other plans use a lane-parallel kernel, as does state mode. Both are
+    most four runs of ones, and under random blocking or forging also when few runs pass 32 steps
+    without an arrival (those are followed one by one); other plans use a lane-parallel kernel,
+    as does state mode. Both are
     exact simulations of the same protocol, but they consume the random streams differently: for
     one seed, a covariance run and a state run of such a plan are different (equally distributed)
     samples, not paired ones.
@@ -359,6 +375,7 @@ def simulate(
         high_power_rate=out["high_power_rate"],
         flags_sent=out["flags_sent"],
         flags_blocked=out["flags_blocked"],
+        flags_forged=out["flags_forged"],
         runs=runs,
         horizon=horizon,
         seed=seed,

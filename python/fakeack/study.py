@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 
 from .attack import j_attack
-from .attacks import PeriodicBlocking
+from .attacks import Attack, PeriodicBlocking
 from .config import MonteCarloConfig
 from .montecarlo import OfflineSchedule, OnlineSchedule, SimulationResult, expected_trace_curve, simulate
 from .schedules import (
@@ -160,7 +160,7 @@ def _exact_j_max_curve(s: LinearSystem, lam: float, horizon: int) -> np.ndarray:
 
 
 def run_monte_carlo(
-    s: LinearSystem, lam: float, sched: Any, mc: MonteCarloConfig, attack: PeriodicBlocking | None
+    s: LinearSystem, lam: float, sched: Any, mc: MonteCarloConfig, attack: Attack | None
 ) -> SimulationResult:
     """:func:`fakeack.simulate` with the settings of ``mc``."""
     return simulate(

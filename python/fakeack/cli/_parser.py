@@ -180,7 +180,13 @@ def _add_simulate(sub: argparse._SubParsersAction) -> None:
         metavar="MU",
         help="probability of the z0-bit memory (default 1 with --z0)",
     )
-    parser.add_argument("--attack", metavar="R/T", help="block the first R of every T flag-ACKs")
+    parser.add_argument(
+        "--attack",
+        metavar="ATTACK",
+        help="R/T blocks the first R of every T flag-ACKs; random:BETA blocks each with probability "
+        "BETA; inject:GAMMA forges one with probability GAMMA on each step without a genuine one "
+        "(inject:GAMMA+random:BETA or inject:GAMMA+R/T also blocks)",
+    )
     parser.add_argument("--runs", type=_int_at_least(2), default=10_000, metavar="N", help="independent runs")
     parser.add_argument(
         "--horizon", type=_int_at_least(1), default=DEFAULT_HORIZON, metavar="H", help="steps per run"

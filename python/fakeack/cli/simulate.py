@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from ..attack import j_attack
-from ..attacks import PeriodicBlocking, as_attack
+from ..attacks import Attack, FlagInjection, MaskBlocking, PeriodicBlocking, RandomBlocking, as_attack
 from ..config import MonteCarloConfig
 from ..montecarlo import OfflineSchedule, OnlineSchedule, SimulationResult, TraceCurve, expected_trace_curve
 from ..schedules import OnlineDesign, design_online, j_offline, j_online
@@ -26,7 +26,7 @@ class _Plan:
     """What to simulate, and its stationary cost."""
 
     schedule: OfflineSchedule | OnlineSchedule
-    attack: PeriodicBlocking | None
+    attack: Attack | None
     stationary: float
 
 
@@ -53,7 +53,7 @@ def _online_design(args: argparse.Namespace, inputs: SystemInputs) -> OnlineDesi
     return design_online(inputs.lam, inputs.ratio)
 
 
-def _plan(args: argparse.Namespace, inputs: SystemInputs, attack: PeriodicBlocking | None) -> _Plan:
+def _plan(args: argparse.Namespace, inputs: SystemInputs, attack: Attack | None) -> _Plan:
     s, lam = inputs.system, inputs.lam
     if args.schedule == "offline":
         if args.z0 is not None or args.mu is not None:
@@ -65,7 +65,7 @@ def _plan(args: argparse.Namespace, inputs: SystemInputs, attack: PeriodicBlocki
     schedule = OnlineSchedule(z0, mu)
     if attack is None:
         return _Plan(schedule, None, j_online(s, lam, z0, mu))
-    return _Plan(schedule, attack, j_attack(s, lam, z0, attack.r, attack.t, mu))
+    return _Plan(schedule, attack, j_attack(s, lam, z0, mu=mu, attack=attack))
 
 
 def _csv(outcome: _Outcome, horizon: int) -> str:
@@ -109,6 +109,7 @@ def _document(outcome: _Outcome) -> dict[str, Any]:
         "high_power_rate": res.high_power_rate,
         "flags_sent": res.flags_sent,
         "flags_blocked": res.flags_blocked,
+        "flags_forged": res.flags_forged,
         "j_k": res.j_k,
         "mean_trace": res.mean_trace,
         "exact_j_k": outcome.exact.j_k,
@@ -116,13 +117,19 @@ def _document(outcome: _Outcome) -> dict[str, Any]:
     }
 
 
+def _attack_text(attack: Attack | None) -> str:
+    """The attack as the report's heading names it: its label and what it does."""
+    if attack is None:
+        return "no attack"
+    if isinstance(attack, PeriodicBlocking):
+        return f"attack {attack.label} (blocks the first {attack.r} of every {attack.t} flag-ACKs)"
+    assert isinstance(attack, (MaskBlocking, RandomBlocking, FlagInjection))
+    return f"attack {attack.label} ({attack})"
+
+
 def _text(outcome: _Outcome) -> str:
     res, row, attack = outcome.result, outcome.row, outcome.plan.attack
-    what = (
-        "no attack"
-        if attack is None
-        else f"attack {attack.label} (blocks the first {attack.r} of every {attack.t} flag-ACKs)"
-    )
+    what = _attack_text(attack)
     check = f"; more than {FLAG_SIGMAS:g}: check!)" if row.flagged else ")"
     lines = [
         f"fakeack simulate: {res.schedule}, {what}",
@@ -135,7 +142,8 @@ def _text(outcome: _Outcome) -> str:
         f"  J stationary      {format_number(outcome.plan.stationary)}   "
         "(k -> infinity; J_H differs by the transient)",
         f"  high-power rate {res.high_power_rate:.6f}; flag-ACKs sent {res.flags_sent:.6f}/step, "
-        f"blocked {res.flags_blocked:.6f}/step",
+        f"blocked {res.flags_blocked:.6f}/step"
+        + ("" if not isinstance(attack, FlagInjection) else f", forged {res.flags_forged:.6f}/step (taken for genuine)"),
     ]
     if res.mode == "state":
         lines.append("  (state mode: the squared estimation error averaged over runs; its mean is Tr E[P_k])")
@@ -148,12 +156,10 @@ def run(args: argparse.Namespace) -> int:
     if args.runs < 2:
         raise ValueError(f"--runs must be at least 2 (the standard error needs two runs), got {args.runs}")
     attack = as_attack(args.attack, "--attack")
-    assert attack is None or isinstance(attack, PeriodicBlocking)  # as_attack's reading of "r/t"
     plan = _plan(args, inputs, attack)
     mc = MonteCarloConfig(args.runs, args.horizon, args.seed, args.mode, args.protocol)
     result = run_monte_carlo(inputs.system, inputs.lam, plan.schedule, mc, plan.attack)
-    pair = None if plan.attack is None else (plan.attack.r, plan.attack.t)
-    exact = expected_trace_curve(inputs.system, inputs.lam, plan.schedule, args.horizon, pair)
+    exact = expected_trace_curve(inputs.system, inputs.lam, plan.schedule, args.horizon, plan.attack)
     row = Row("j", "J_H", mc=result.j, mc_stderr=result.stderr, exact_h=float(exact.j_k[-1]))
     outcome = _Outcome(inputs, plan, result, exact, row)
     if args.csv:

@@ -98,6 +98,7 @@ fn result_dict<'py>(py: Python<'py>, res: McResult) -> PyResult<Bound<'py, PyDic
     out.set_item("high_power_rate", res.high_power_rate)?;
     out.set_item("flags_sent", res.flags_sent)?;
     out.set_item("flags_blocked", res.flags_blocked)?;
+    out.set_item("flags_forged", res.flags_forged)?;
     out.set_item("steps", res.steps)?;
     out.set_item("delivered_per_run", res.delivered_per_run.into_pyarray(py))?;
     Ok(out)

@@ -6,14 +6,20 @@
 //!   (j = 1..=depth; τ never exceeds the plan's bound, which is the depth);
 //! * the detector's zero count (under attack) as a thermometer with levels 1..=z0+1;
 //! * the attacker's flag counter σ in binary planes; "block" is σ in one of the mask's runs of
-//!   ones, a few bit-serial comparisons with constants.
+//!   ones, a few bit-serial comparisons with constants. Independent blocking has no counter: a
+//!   β draw in the lanes with a flag. Forging is a γ draw in the lanes without one.
+//!
+//! Independent blocking leaves τ unbounded. Such plans (and forging plans whose bound is deep)
+//! stop the thermometer at a level L few runs reach: level L - 1 holds "τ ≥ L", and the lanes
+//! there keep their exact τ one by one (`deep.rs`), which the histogram's last bin leaves out.
 //!
 //! A Bernoulli(p) draw compares each lane's uniform U with the exact threshold T = ⌊p 2^64⌋ bit by
 //! bit from the most significant, one random word per bit (bit l of the word belongs to lane l),
 //! and stops once every lane that needs a draw is decided or T has no further one bits (the
 //! undecided lanes then have U ≥ T). Each lane hits iff U < T: exactly Bernoulli(T / 2^64), as in
-//! the lane kernels. Only low-power lanes draw the channel, and the μ draw is made only where the
-//! zero count is exactly z0 (the one place it matters); a draw for all 256 lanes takes about
+//! the lane kernels. Only low-power lanes draw the channel, the μ draw is made only where the
+//! zero count is exactly z0 (the one place it matters), β only where a genuine flag is sent and
+//! γ only where none is; a draw for all 256 lanes takes about
 //! log2(256) + 1.3 words for a generic p, one word for p = 1/2, none when no lane needs it.
 //!
 //! Tr P_k summed over runs is Σ_j `tr[j]` n_j(k), with the histogram n_j(k) of τ read off the
@@ -40,6 +46,7 @@ use super::KernelFlags;
 use crate::error::Result;
 
 mod body;
+mod deep;
 mod words;
 
 use body::body;
@@ -61,6 +68,10 @@ pub(super) struct BsPlan {
     pub(super) lam_thr: u64,
     /// The threshold ⌊μ 2^64⌋ of the z0-bit memory.
     pub(super) mu_thr: u64,
+    /// The threshold ⌊β 2^64⌋ of independent blocking (0 without it).
+    pub(super) beta_thr: u64,
+    /// The threshold ⌊γ 2^64⌋ of forging (0 without it).
+    pub(super) gamma_thr: u64,
     /// The short memory length z0 (clamped to the depth + 1).
     pub(super) z0: usize,
     /// Memory length when there is no μ draw.
@@ -71,6 +82,10 @@ pub(super) struct BsPlan {
     pub(super) mask_runs: Vec<Range<u64>>,
     /// Flag-ACKs per period of the mask (1 without an attacker).
     pub(super) mask_len: u64,
+    /// The top level L of a deep plan (0: none): the depth is L, and the lanes with τ ≥ L are
+    /// tracked one by one with the full trace table ([`BsBlock::deep_tr`]). Only the kernels of
+    /// independent blocking and forging take deep plans.
+    pub(super) deep_level: usize,
     /// `tr[τ]`, τ = 0..=depth.
     pub(super) tr: Vec<f64>,
 }
@@ -81,14 +96,16 @@ impl BsPlan {
         self.tr.len() - 1
     }
 
-    /// Thermometer levels needed: τ up to the depth, and the zero count up to the memory.
+    /// Thermometer levels needed: τ up to the depth, and the zero count (or τ, which stands for
+    /// it without blocking) up to the memory.
     fn levels(&self, mu_draw: bool, attack: bool) -> usize {
         let memory = if mu_draw {
             self.z0 + 1
         } else {
             self.fixed_memory
         };
-        self.depth().max(if attack { memory } else { 0 }).max(1)
+        let counted = attack || self.deep_level > 0;
+        self.depth().max(if counted { memory } else { 0 }).max(1)
     }
 
     /// Bits of the attacker's counter: enough to hold `mask_len` itself (the wrap test).
@@ -118,13 +135,16 @@ pub(super) fn mask_runs(mask: &[bool]) -> Vec<Range<u64>> {
 pub(super) struct BsOut {
     /// Σ_k `tr[τ_k]` of each lane (all RUNS lanes; the caller keeps the active ones).
     pub(super) sum: Vec<f64>,
-    /// Flag-ACKs delivered to each lane's sensor (only when recording; else empty).
+    /// Flag-ACKs delivered to each lane's sensor, genuine or forged (only when recording; else
+    /// empty).
     pub(super) delivered: Vec<u64>,
     /// Totals over the active lanes.
     pub(super) sent: u64,
     /// Flags blocked or flipped, over the active lanes.
     pub(super) blocked: u64,
-    /// Active lanes with a flag delivered at the last step.
+    /// Flags forged, over the active lanes.
+    pub(super) forged: u64,
+    /// Active lanes with a flag (genuine or forged) reaching the sensor at the last step.
     pub(super) hi_last: u64,
 }
 
@@ -140,15 +160,25 @@ pub(super) struct BsBlock<'a> {
     pub(super) record: bool,
     /// Per-step sums over the active lanes are added here (length = horizon).
     pub(super) acc: &'a mut [f64],
+    /// The full trace table `tr[τ]`, τ = 0..=bound, for a deep plan's lanes beyond its top
+    /// level (unused otherwise).
+    pub(super) deep_tr: &'a [f64],
 }
 
 /// The portable kernel: every plan on the deepest thermometer and 64 counter planes.
-fn block_portable<const O: bool, const M: bool, const A: bool, const P: bool>(
+fn block_portable<
+    const O: bool,
+    const M: bool,
+    const A: bool,
+    const P: bool,
+    const RB: bool,
+    const FG: bool,
+>(
     p: &BsPlan,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, MAX_DEPTH, 64, Portable>(p, b, cancel, Portable)
+    body::<O, M, A, P, RB, FG, MAX_DEPTH, 64, Portable>(p, b, cancel, Portable)
 }
 
 /// The kernel on AVX2 registers with D thermometer levels and B counter planes. Compiled for
@@ -161,6 +191,8 @@ fn block_avx2<
     const M: bool,
     const A: bool,
     const P: bool,
+    const RB: bool,
+    const FG: bool,
     const D: usize,
     const B: usize,
 >(
@@ -169,24 +201,25 @@ fn block_avx2<
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, D, B, Avx2>(p, b, cancel, avx2)
+    body::<O, M, A, P, RB, FG, D, B, Avx2>(p, b, cancel, avx2)
 }
 
-/// The AVX2 kernel for flags ($o, $m, $a, $pa) and counter width $b, specialised on the
-/// smallest thermometer size that holds `levels`; `$t` is the [`Avx2`] token.
+/// The AVX2 kernel for flags ($o, $m, $a, $pa, $rb, $fg) and counter width $b, specialised on
+/// the smallest thermometer size that holds `levels`; `$t` is the [`Avx2`] token.
 #[cfg(target_arch = "x86_64")]
 macro_rules! avx2_by_depth {
-    ($o:expr, $m:expr, $a:expr, $pa:expr, $b:literal, $levels:expr, $t:ident, $p:ident, $blk:ident, $c:ident) => {
+    ($o:expr, $m:expr, $a:expr, $pa:expr, $rb:expr, $fg:expr, $b:literal, $levels:expr, $t:ident,
+     $p:ident, $blk:ident, $c:ident) => {
         // SAFETY: `$t` is a token that only `Avx2::detect` makes, on a CPU with AVX2, and
         // `run_block` detected POPCNT before using it: the two features `block_avx2` is
         // compiled for.
         unsafe {
             match $levels {
-                0..=2 => block_avx2::<$o, $m, $a, $pa, 2, $b>($t, $p, $blk, $c),
-                3..=4 => block_avx2::<$o, $m, $a, $pa, 4, $b>($t, $p, $blk, $c),
-                5..=8 => block_avx2::<$o, $m, $a, $pa, 8, $b>($t, $p, $blk, $c),
-                9..=16 => block_avx2::<$o, $m, $a, $pa, 16, $b>($t, $p, $blk, $c),
-                _ => block_avx2::<$o, $m, $a, $pa, 32, $b>($t, $p, $blk, $c),
+                0..=2 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 2, $b>($t, $p, $blk, $c),
+                3..=4 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 4, $b>($t, $p, $blk, $c),
+                5..=8 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 8, $b>($t, $p, $blk, $c),
+                9..=16 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 16, $b>($t, $p, $blk, $c),
+                _ => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 32, $b>($t, $p, $blk, $c),
             }
         }
     };
@@ -204,27 +237,28 @@ pub(super) fn run_block(
     #[cfg(target_arch = "x86_64")]
     if let Some(avx2) = avx2.filter(|_| is_x86_feature_detected!("popcnt")) {
         let levels = p.levels(flags.mu_draw, flags.attack);
-        // Counter planes: none without an attacker, 4 for masks up to 15 long, else 64.
+        // Counter planes: none without mask blocking, 4 for masks up to 15 long, else 64.
         let wide = p.counter_bits() > 4;
-        // Only attacked kernels have counter planes: monomorphise B = 4 and 64 for those alone.
+        // Only mask-blocking kernels have counter planes: monomorphise B = 4 and 64 for those
+        // alone.
         macro_rules! sized {
-            ($o:tt, $m:tt, false, $pa:tt) => {
-                avx2_by_depth!($o, $m, false, $pa, 1, levels, avx2, p, b, cancel)
-            };
-            ($o:tt, $m:tt, true, $pa:tt) => {
+            ($o:tt, $m:tt, true, $pa:tt, false, $fg:tt) => {
                 if wide {
-                    avx2_by_depth!($o, $m, true, $pa, 64, levels, avx2, p, b, cancel)
+                    avx2_by_depth!($o, $m, true, $pa, false, $fg, 64, levels, avx2, p, b, cancel)
                 } else {
-                    avx2_by_depth!($o, $m, true, $pa, 4, levels, avx2, p, b, cancel)
+                    avx2_by_depth!($o, $m, true, $pa, false, $fg, 4, levels, avx2, p, b, cancel)
                 }
+            };
+            ($o:tt, $m:tt, $a:tt, $pa:tt, $rb:tt, $fg:tt) => {
+                avx2_by_depth!($o, $m, $a, $pa, $rb, $fg, 1, levels, avx2, p, b, cancel)
             };
         }
         return by_flags!(flags, sized);
     }
     let _ = avx2;
     macro_rules! portable {
-        ($o:expr, $m:expr, $a:expr, $pa:expr) => {
-            block_portable::<$o, $m, $a, $pa>(p, b, cancel)
+        ($o:expr, $m:expr, $a:expr, $pa:expr, $rb:expr, $fg:expr) => {
+            block_portable::<$o, $m, $a, $pa, $rb, $fg>(p, b, cancel)
         };
     }
     by_flags!(flags, portable)

@@ -56,7 +56,10 @@ pub struct McConfig {
     pub schedule: McSchedule,
     /// The attack on the flag-ACKs (online schedule only): [`Attack::Periodic`] blocks the first
     /// r of every t, [`Attack::Mask`] any periodic mask over the attacker's flag counter (a mask
-    /// of all ones blocks every flag, and the runs estimate J_max). `None`: no attacker.
+    /// of all ones blocks every flag, and the runs estimate J_max), [`Attack::Random`] blocks
+    /// each flag independently with probability β, and [`Attack::Injection`] forges a flag-ACK
+    /// with probability γ on every step without a genuine one (beside any of the blocking
+    /// attacks on the genuine flags). `None`: no attacker.
     pub attack: Option<Attack>,
     /// Covariance (τ only) or state (Gaussian errors) fidelity.
     pub mode: Mode,
@@ -86,24 +89,32 @@ pub struct McResult {
     /// sqrt(runs). `+inf` with a single run (no spread can be estimated) or when some run's
     /// average is infinite; never NaN.
     pub stderr: f64,
-    /// Fraction of steps at high power Δ.
+    /// Fraction of steps at high power Δ: the initial step and every step after a flag-ACK
+    /// reached the sensor, genuine or forged.
     pub high_power_rate: f64,
-    /// Flag-ACKs sent by the detector, per step.
+    /// Flag-ACKs sent by the detector, per step (genuine ones only).
     pub flags_sent: f64,
-    /// Flag-ACKs blocked (protocol B) or flipped (protocol A) by the attacker, per step.
+    /// Genuine flag-ACKs blocked (protocol B) or flipped to 0 (protocol A) by the attacker, per
+    /// step.
     pub flags_blocked: f64,
+    /// Flag-ACKs forged by the attacker ([`Attack::Injection`]), per step: flag packets it sent
+    /// (protocol B) or 0-bits it flipped to 1 (protocol A) on steps without a genuine flag. The
+    /// sensor cannot tell them from genuine ones, so the flag-ACKs reaching it per step are
+    /// `flags_sent - flags_blocked + flags_forged`.
+    pub flags_forged: f64,
     /// Number of runs.
     pub runs: u64,
     /// Steps per run (= horizon).
     pub steps: u64,
     /// Only with [`McConfig::record_runs`] (else empty, never allocated): entry i is the number
-    /// of flag-ACKs delivered to the sensor during run i over steps 1..=horizon, that is sent by
-    /// the detector and neither blocked (protocol B) nor flipped (protocol A); a flag delivered
-    /// at the last step counts, and the initial high-power step at k = 1 is not a flag. Runs are
+    /// of flag-ACKs delivered to the sensor during run i over steps 1..=horizon: those sent by
+    /// the detector and neither blocked (protocol B) nor flipped (protocol A), plus those the
+    /// attacker forged (the sensor cannot tell them apart); a flag delivered at the last step
+    /// counts, and the initial high-power step at k = 1 is not a flag. Runs are
     /// in run order: run i is position i % [`BLOCK_RUNS`](super::BLOCK_RUNS) of block i / [`BLOCK_RUNS`](super::BLOCK_RUNS), so the
     /// entries depend on the seed only (not on threads or kernels), and a run's entry does not
     /// depend on how many runs follow it. All zeros for an offline schedule (no flags). Its mean
-    /// over runs, divided by the horizon, is `flags_sent - flags_blocked`.
+    /// over runs, divided by the horizon, is `flags_sent - flags_blocked + flags_forged`.
     ///
     /// Memory: the one output that grows with `runs`, 8 bytes per run (2 GiB at the limit of
     /// 2^28 runs; more is refused with [`Error::TooLarge`](crate::Error::TooLarge)).

@@ -19,10 +19,12 @@ use crate::system::LinearSystem;
 fn run_tile(plan: &Plan, isa: Isa, tile: &mut Tile, cancel: &AtomicBool) -> Result<TileOut> {
     let p = plan.params();
     macro_rules! go {
-        ($o:expr, $m:expr, $a:expr, $pa:expr) => {
+        ($o:expr, $m:expr, $a:expr, $pa:expr, $rb:expr, $fg:expr) => {
             match &plan.state {
-                None => cov_tile::<$o, $m, $a, $pa>(isa, &p, &plan.tr, tile, cancel),
-                Some(model) => state_tile::<$o, $m, $a, $pa>(isa, &p, model, tile, cancel),
+                None => cov_tile::<$o, $m, $a, $pa, $rb, $fg>(isa, &p, &plan.tr, tile, cancel),
+                Some(model) => {
+                    state_tile::<$o, $m, $a, $pa, $rb, $fg>(isa, &p, model, tile, cancel)
+                }
             }
         };
     }
@@ -83,6 +85,8 @@ struct BlockOut {
     sent: u128,
     /// Flag-ACKs blocked or flipped.
     blocked: u128,
+    /// Flag-ACKs forged.
+    forged: u128,
     /// High-power steps.
     high: u128,
     /// Runs in the block.
@@ -122,6 +126,7 @@ fn run_bitslice_block(
             active: runs as usize,
             record: plan.record_runs,
             acc: &mut acc,
+            deep_tr: &plan.tr,
         },
         cancel,
     )?;
@@ -131,8 +136,9 @@ fn run_bitslice_block(
         moments.push(s / horizon);
     }
     let high = if plan.online {
-        // Δ at k = 1 and after every delivered flag except one at the last step.
-        u128::from(runs + res.sent - res.blocked - res.hi_last)
+        // Δ at k = 1 and after every flag reaching the sensor (delivered or forged) except one
+        // at the last step.
+        u128::from(runs + res.sent - res.blocked + res.forged - res.hi_last)
     } else {
         u128::from(runs) * u128::from(plan.offline_high)
     };
@@ -143,6 +149,7 @@ fn run_bitslice_block(
         moments,
         sent: u128::from(res.sent),
         blocked: u128::from(res.blocked),
+        forged: u128::from(res.forged),
         high,
         runs,
         delivered,
@@ -164,6 +171,7 @@ fn run_block(plan: &Plan, kernels: Kernels, block: u64, cancel: &AtomicBool) -> 
         moments: Moments::default(),
         sent: 0,
         blocked: 0,
+        forged: 0,
         high: 0,
         runs,
         delivered: if plan.record_runs {
@@ -203,14 +211,18 @@ fn run_block(plan: &Plan, kernels: Kernels, block: u64, cancel: &AtomicBool) -> 
             out.moments.push(res.sum[l] / horizon);
             out.sent += u128::from(res.sent[l]);
             out.blocked += u128::from(res.blocked[l]);
+            out.forged += u128::from(res.forged[l]);
+            // Flags reaching the sensor: delivered genuine ones and forged ones.
+            let reached = res.sent[l] - res.blocked[l] + res.forged[l];
             out.high += if plan.online {
-                // Δ at k = 1 and after every delivered flag except one at the last step.
-                u128::from(1 + res.sent[l] - res.blocked[l] - res.hi_last[l])
+                // Δ at k = 1 and after every flag reaching the sensor except one at the last
+                // step.
+                u128::from(1 + reached - res.hi_last[l])
             } else {
                 u128::from(plan.offline_high)
             };
             if plan.record_runs {
-                out.delivered.push(res.sent[l] - res.blocked[l]);
+                out.delivered.push(reached);
             }
         }
     }
@@ -264,6 +276,8 @@ struct Totals {
     sent: u128,
     /// Flag-ACKs blocked or flipped.
     blocked: u128,
+    /// Flag-ACKs forged.
+    forged: u128,
     /// High-power steps.
     high: u128,
     /// Delivered flag-ACKs per run, in run order (recording only; at most 2^28 runs, checked).
@@ -278,6 +292,7 @@ impl Totals {
             moments: Moments::default(),
             sent: 0,
             blocked: 0,
+            forged: 0,
             high: 0,
             delivered: if plan.record_runs {
                 Vec::with_capacity(plan.runs as usize)
@@ -295,6 +310,7 @@ impl Totals {
         self.moments.merge(&out.moments);
         self.sent += out.sent;
         self.blocked += out.blocked;
+        self.forged += out.forged;
         self.high += out.high;
         self.delivered.extend_from_slice(&out.delivered);
     }
@@ -321,6 +337,7 @@ impl Totals {
             high_power_rate: self.high as f64 / steps,
             flags_sent: self.sent as f64 / steps,
             flags_blocked: self.blocked as f64 / steps,
+            flags_forged: self.forged as f64 / steps,
             runs: plan.runs,
             steps: plan.horizon as u64,
             delivered_per_run: self.delivered,

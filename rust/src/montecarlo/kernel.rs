@@ -52,6 +52,10 @@ pub(super) struct Params<'a> {
     pub(super) lam: SlicedThreshold,
     /// The probability μ of using the z0-bit memory at a step.
     pub(super) mu: SlicedThreshold,
+    /// The probability β of blocking a genuine flag-ACK (independent blocking).
+    pub(super) beta: SlicedThreshold,
+    /// The probability γ of forging a flag-ACK on a step without a genuine one.
+    pub(super) gamma: SlicedThreshold,
     /// The short memory length z0 (with probability μ).
     pub(super) z0: u64,
     /// The long memory length z0 + 1 (with probability 1 - μ; the reference kernel's form).
@@ -95,8 +99,10 @@ pub(super) struct TileOut {
     pub(super) sent: Lanes,
     /// Flag-ACKs blocked or flipped by the attacker.
     pub(super) blocked: Lanes,
-    /// 1 where a flag-ACK was delivered at the last step (the Δ step it announces is beyond
-    /// the horizon).
+    /// Flag-ACKs forged by the attacker.
+    pub(super) forged: Lanes,
+    /// 1 where a flag-ACK (genuine or forged) reached the sensor at the last step (the Δ step
+    /// it announces is beyond the horizon).
     pub(super) hi_last: Lanes,
 }
 
@@ -162,7 +168,14 @@ pub(super) fn detect_isa() -> Isa {
 }
 
 /// Runs one covariance-mode tile on the kernel `isa`: lane l's per-step Tr P_k is `tr[τ_k]`.
-pub(super) fn cov_tile<const O: bool, const M: bool, const A: bool, const P: bool>(
+pub(super) fn cov_tile<
+    const O: bool,
+    const M: bool,
+    const A: bool,
+    const P: bool,
+    const RB: bool,
+    const FG: bool,
+>(
     isa: Isa,
     p: &Params,
     tr: &[f64],
@@ -172,7 +185,7 @@ pub(super) fn cov_tile<const O: bool, const M: bool, const A: bool, const P: boo
     let tables = KernelTables::new(p, tr)?;
     #[cfg(test)]
     if isa == Isa::Reference {
-        return reference::cov_tile_reference::<O, M, A, P>(p, tr, tile, cancel);
+        return reference::cov_tile_reference::<O, M, A, P, RB, FG>(p, tr, tile, cancel);
     }
     let mut proto = Proto::new(&tile.seeds);
     let mut sum = [0.0f64; LANES];
@@ -183,7 +196,7 @@ pub(super) fn cov_tile<const O: bool, const M: bool, const A: bool, const P: boo
         }
         for sub in chunk.chunks_mut(SUB_STEPS) {
             let rows = &mut buf[..sub.len()];
-            group_rows::<O, M, A, P>(
+            group_rows::<O, M, A, P, RB, FG>(
                 isa,
                 &tables,
                 &mut proto,

@@ -12,16 +12,25 @@
 //!   Each step it uses a z0-bit memory with probability μ, else z0+1 bits; when the last L bits are
 //!   all zero it sends a flag-ACK and resets the memory to all ones;
 //! * the attacker keeps a counter over flag-ACKs and blocks a flag iff `mask[counter]`, then
-//!   advances the counter modulo the mask length. A blocked flag still resets the detector's
-//!   memory, but the sensor does not learn of it and stays on δ.
+//!   advances the counter modulo the mask length; under independent blocking
+//!   ([`Attack::Random`](crate::Attack::Random)) it keeps no counter and blocks each flag with
+//!   probability β. A blocked flag still resets the detector's memory, but the sensor does not
+//!   learn of it and stays on δ;
+//! * an injecting attacker ([`Attack::Injection`](crate::Attack::Injection)) forges a flag-ACK
+//!   with probability γ on each step on which the detector sends none (a step that carries a
+//!   genuine flag, delivered or blocked, is never forged on), besides any blocking of the
+//!   genuine flags. The sensor cannot tell it from a genuine one and uses Δ at the next step. A
+//!   forged flag advances no counter and does not reset the detector's memory (the arrival it
+//!   brings about does).
 //!
 //! Initial condition (the paper's): at k = 1 the sensor uses Δ (the packet arrives, τ = 0), the
 //! memory is all ones and the attacker's counter is 0.
 //!
 //! Two channel protocols carry the flag-ACK, as two separate code paths with identical
 //! statistics: in [`Protocol::B`] a flag packet exists only when a flag is due and the attacker
-//! drops it (DoS); in [`Protocol::A`] the detector sends one bit every step (1 = flag) and the
-//! attacker flips 1-bits to 0 (integrity attack).
+//! drops it (DoS) or, when none is due, sends a forged one; in [`Protocol::A`] the detector
+//! sends one bit every step (1 = flag) and the attacker flips 1-bits to 0 (integrity attack) or
+//! forges by flipping 0-bits to 1.
 //!
 //! Two fidelities: [`Mode::Covariance`] tracks τ and accumulates `tr[τ]`; [`Mode::State`] simulates
 //! the estimation errors with Gaussian noise (see [`Mode::State`]).
@@ -38,7 +47,11 @@
 //! Two kernel families simulate a block. In covariance mode, plans with a holding-time bound
 //! ≤ 32, a memory ≤ 32 under attack and a mask with at most four runs of ones go to the
 //! bit-sliced kernel (`bitslice`): the block's 256 runs are the bit lanes of four words, about
-//! ten times faster. Every other plan, and state mode, uses the lane kernels below. Each family
+//! ten times faster. Under independent blocking or forging it also takes plans whose holding
+//! time is unbounded (or deeper than 32): its thermometer then stops at a level few runs reach,
+//! chosen from the stationary law of the attack chain, and the runs beyond it are tracked one
+//! by one (`bitslice/deep.rs`). Every other plan, and state mode, uses the lane kernels below.
+//! Each family
 //! is deterministic in the seed and independent of threads and CPU features; the two consume
 //! randomness differently, so one seed gives different, equally distributed samples on each
 //! (tests check both against the exact values).
@@ -53,14 +66,20 @@
 //! runs the protocol on the same grouped kernels, a sub-chunk ahead, and reads the arrivals off
 //! their rows, so both modes see the same protocol randomness.
 //!
+//! Each step draws, in this order, the channel (λ), the memory (μ, when 0 < μ < 1), the
+//! independent blocking (β) and the forging (γ), each only in the plans that have it: the lane
+//! kernels draw in every lane, the bit-sliced kernel only in the lanes where the draw matters
+//! (low power; a zero count of exactly z0; a genuine flag; no genuine flag).
+//!
 //! Bernoulli draws use 16-bit slices of 64-bit xoshiro256++ outputs (four draws per output),
 //! compared with the top 16 bits of the exact threshold T = ⌊p 2^64⌋; a tie (probability 2^-16)
 //! is resolved with 48 further bits from a per-run side stream, so every draw is exactly
 //! Bernoulli(T / 2^64), within 2^-64 of p.
 //!
 //! The holding time never exceeds the plan's bound (the largest reachable τ, or the horizon):
-//! τ resets at every arrival, a delivered flag-ACK forces an arrival at the next step, and at most
-//! (longest run of blocked flags) flags in a row are blocked. Table lookups clamp their index to
+//! τ resets at every arrival, a delivered or forged flag-ACK forces an arrival at the next step,
+//! and at most (longest run of blocked flags) flags in a row are blocked; independent blocking
+//! (β > 0) can block any number, and its bound is the horizon. Table lookups clamp their index to
 //! the bound anyway, so the tables are never read out of range.
 //!
 //! The AVX2 kernels are compiled for AVX2 (`#[target_feature]`) and reached only through an
@@ -85,15 +104,20 @@ struct KernelFlags {
     online: bool,
     /// A μ draw every step (0 < μ < 1); else the memory length is fixed.
     mu_draw: bool,
-    /// An attacker on the flag-ACKs.
+    /// An attacker that blocks genuine flag-ACKs (by its mask, or independently).
     attack: bool,
     /// Protocol A (a bit every step) rather than B (a packet when a flag is due).
     protocol_a: bool,
+    /// The blocking is independent, probability β per flag, with no counter (needs `attack`);
+    /// else it follows the mask over the attacker's counter.
+    random_block: bool,
+    /// The attacker forges a flag-ACK with probability γ on each step without a genuine one.
+    forge: bool,
 }
 
-/// Calls `$go!(ONLINE, MU_DRAW, ATTACK, PROTO_A)` with the const-generic kernel flags matching
-/// the run-time [`KernelFlags`] `$flags` (an offline plan has no detector, an unattacked one no
-/// channel, so those combinations share one kernel).
+/// Calls `$go!(ONLINE, MU_DRAW, ATTACK, PROTO_A, RANDOM_BLOCK, FORGE)` with the const-generic
+/// kernel flags matching the run-time [`KernelFlags`] `$flags` (an offline plan has no detector,
+/// and an unattacked one without forging no channel, so those combinations share one kernel).
 macro_rules! by_flags {
     ($flags:expr, $go:ident) => {{
         let $crate::montecarlo::KernelFlags {
@@ -101,15 +125,38 @@ macro_rules! by_flags {
             mu_draw,
             attack,
             protocol_a,
+            random_block,
+            forge,
         } = $flags;
-        match (online, mu_draw, attack, protocol_a) {
-            (false, _, _, _) => $go!(false, false, false, false),
-            (true, false, false, _) => $go!(true, false, false, false),
-            (true, true, false, _) => $go!(true, true, false, false),
-            (true, false, true, false) => $go!(true, false, true, false),
-            (true, false, true, true) => $go!(true, false, true, true),
-            (true, true, true, false) => $go!(true, true, true, false),
-            (true, true, true, true) => $go!(true, true, true, true),
+        match (online, mu_draw, attack, protocol_a, random_block, forge) {
+            (false, ..) => $go!(false, false, false, false, false, false),
+            (true, false, false, _, _, false) => $go!(true, false, false, false, false, false),
+            (true, true, false, _, _, false) => $go!(true, true, false, false, false, false),
+            (true, false, true, false, false, false) => {
+                $go!(true, false, true, false, false, false)
+            }
+            (true, false, true, true, false, false) => $go!(true, false, true, true, false, false),
+            (true, true, true, false, false, false) => $go!(true, true, true, false, false, false),
+            (true, true, true, true, false, false) => $go!(true, true, true, true, false, false),
+            // Forging without blocking.
+            (true, false, false, false, _, true) => $go!(true, false, false, false, false, true),
+            (true, false, false, true, _, true) => $go!(true, false, false, true, false, true),
+            (true, true, false, false, _, true) => $go!(true, true, false, false, false, true),
+            (true, true, false, true, _, true) => $go!(true, true, false, true, false, true),
+            // Mask blocking with forging.
+            (true, false, true, false, false, true) => $go!(true, false, true, false, false, true),
+            (true, false, true, true, false, true) => $go!(true, false, true, true, false, true),
+            (true, true, true, false, false, true) => $go!(true, true, true, false, false, true),
+            (true, true, true, true, false, true) => $go!(true, true, true, true, false, true),
+            // Independent blocking, with or without forging.
+            (true, false, true, false, true, false) => $go!(true, false, true, false, true, false),
+            (true, false, true, true, true, false) => $go!(true, false, true, true, true, false),
+            (true, true, true, false, true, false) => $go!(true, true, true, false, true, false),
+            (true, true, true, true, true, false) => $go!(true, true, true, true, true, false),
+            (true, false, true, false, true, true) => $go!(true, false, true, false, true, true),
+            (true, false, true, true, true, true) => $go!(true, false, true, true, true, true),
+            (true, true, true, false, true, true) => $go!(true, true, true, false, true, true),
+            (true, true, true, true, true, true) => $go!(true, true, true, true, true, true),
         }
     }};
 }

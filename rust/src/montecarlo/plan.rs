@@ -10,8 +10,10 @@ use super::state::StateModel;
 use super::{KernelFlags, MAX_HORIZON, MAX_RECORDED_RUNS};
 use crate::attack::{longest_cyclic_run, Attack};
 use crate::error::{Error, Result};
+use crate::general::capped_attack_chain;
 use crate::online::{check_lam, OnlineDesign};
 use crate::rng::bernoulli_threshold;
+use crate::stationary::gth;
 use crate::system::LinearSystem;
 
 /// The largest holding time τ a run can reach (before capping by the horizon) under the
@@ -34,20 +36,54 @@ pub(super) fn max_tau(schedule: &McSchedule, mask: Option<&[bool]>) -> Option<u6
     }
 }
 
-/// The attack as a blocking mask over the attacker's flag counter (true = blocked), validated.
-/// A mask of all ones is accepted: every flag is blocked and the runs estimate J_max.
-///
-/// Every kind of [`Attack`] is matched by name, so a new kind (blocking each flag
-/// independently, forged flag-ACKs) fails to compile here until the Monte Carlo simulates it or
-/// refuses it with `Error::invalid("attack", "... not supported by the Monte Carlo yet")`.
-fn blocking_mask(attack: &Attack) -> Result<Cow<'_, [bool]>> {
+/// How the attacker treats the genuine flag-ACKs and whether it forges, validated; what
+/// [`Plan`] records of an [`Attack`].
+struct AttackPlan<'a> {
+    /// The blocking mask over the attacker's flag counter (true = blocked), for a periodic
+    /// blocking attack. A mask of all ones is accepted: every flag is blocked and the runs
+    /// estimate J_max.
+    mask: Option<Cow<'a, [bool]>>,
+    /// β, for independent blocking.
+    beta: Option<f64>,
+    /// γ, for an injection.
+    gamma: Option<f64>,
+}
+
+/// The attack as the Monte Carlo runs it. Every kind of [`Attack`] is matched by name, so a new
+/// kind fails to compile here until the Monte Carlo simulates it or refuses it.
+fn attack_plan(attack: &Attack) -> Result<AttackPlan<'_>> {
+    attack.validate()?;
     match attack {
-        Attack::Periodic { .. } | Attack::Mask(_) => attack.blocking_mask(),
-        Attack::Random { .. } | Attack::Injection { .. } => Err(Error::invalid(
-            "attack",
-            format!(
-                "{attack}: not supported by the Monte Carlo yet (its costs are exact: j_attack)"
-            ),
+        Attack::Periodic { .. } | Attack::Mask(_) | Attack::Random { .. } => {
+            blocking_plan(Some(attack))
+        }
+        Attack::Injection { gamma, block } => Ok(AttackPlan {
+            gamma: Some(*gamma),
+            ..blocking_plan(block.as_deref())?
+        }),
+    }
+}
+
+/// The plan of a blocking attack on the genuine flag-ACKs (`None`: no blocking).
+fn blocking_plan(block: Option<&Attack>) -> Result<AttackPlan<'_>> {
+    let none = AttackPlan {
+        mask: None,
+        beta: None,
+        gamma: None,
+    };
+    match block {
+        None => Ok(none),
+        Some(b @ (Attack::Periodic { .. } | Attack::Mask(_))) => Ok(AttackPlan {
+            mask: Some(b.blocking_mask()?),
+            ..none
+        }),
+        Some(Attack::Random { beta }) => Ok(AttackPlan {
+            beta: Some(*beta),
+            ..none
+        }),
+        Some(Attack::Injection { .. }) => Err(Error::invalid(
+            "block",
+            "must be a blocking attack, not another injection",
         )),
     }
 }
@@ -117,6 +153,63 @@ fn trace_table(sys: &LinearSystem, bound: u64) -> Result<Vec<f64>> {
     Ok(tr)
 }
 
+/// Largest fraction of steps with τ at or above a thermometer's top level for which the
+/// bit-sliced kernel keeps that level (about one run in 256 per step, tracked one by one).
+const DEEP_TAIL: f64 = 1.0 / 256.0;
+/// Beyond this fraction of steps with τ >= [`bitslice::MAX_DEPTH`], the one-by-one tracking
+/// would cost more than the lane kernels.
+const DEEP_TAIL_MAX: f64 = 1.0 / 8.0;
+/// Largest chain explored to estimate the law of τ for [`deep_level_for`].
+const DEEP_CHAIN_STATES: u64 = 50_000;
+
+/// The thermometer level at which the bit-sliced kernel stops counting τ level by level under
+/// an attack that blocks or forges at random (a power of two, at least the memory): the
+/// smallest whose share of steps at or above it, in the stationary law of the general attack
+/// chain capped at [`bitslice::MAX_DEPTH`], is at most [`DEEP_TAIL`]. `None` when even the
+/// deepest level leaves more than [`DEEP_TAIL_MAX`] there (the lane kernels are faster). The
+/// choice only sets the speed: runs beyond the level are tracked exactly.
+fn deep_level_for(cfg: &McConfig, memory: usize, period: u64) -> Option<usize> {
+    let levels = [2usize, 4, 8, 16, bitslice::MAX_DEPTH];
+    let deepest = bitslice::MAX_DEPTH;
+    let states = (deepest as u64 + 1) * (memory as u64 + 2) * period;
+    let (McSchedule::Online { z0, mu }, Some(attack)) = (&cfg.schedule, &cfg.attack) else {
+        return Some(deepest);
+    };
+    let tails = if states <= DEEP_CHAIN_STATES {
+        tau_tails(cfg.lam, *z0, *mu, attack)
+    } else {
+        None
+    };
+    let Some(tail) = tails else {
+        return Some(deepest);
+    };
+    levels
+        .iter()
+        .copied()
+        .filter(|&d| d >= memory)
+        .find(|&d| tail[d] <= DEEP_TAIL)
+        .or((tail[deepest] <= DEEP_TAIL_MAX).then_some(deepest))
+}
+
+/// P(τ >= d) for d = 0..=[`bitslice::MAX_DEPTH`] in the stationary law of the attack chain
+/// (holding times above the cap folded into it); `None` if the chain cannot be solved.
+fn tau_tails(lam: f64, z0: u64, mu: f64, attack: &Attack) -> Option<Vec<f64>> {
+    let cap = bitslice::MAX_DEPTH;
+    let design = OnlineDesign::new(z0, mu).ok()?;
+    let (states, csr) = capped_attack_chain(lam, design, attack, Some(cap as u64)).ok()?;
+    let pi = gth(&csr).ok()?;
+    let mut at = vec![0.0; cap + 1];
+    for (s, p) in states.iter().zip(&pi) {
+        at[(s.tau as usize).min(cap)] += p;
+    }
+    let mut tail = vec![0.0; cap + 2];
+    for d in (0..=cap).rev() {
+        tail[d] = tail[d + 1] + at[d];
+    }
+    tail.truncate(cap + 1);
+    Some(tail)
+}
+
 /// The validated, precomputed experiment shared by all blocks.
 pub(super) struct Plan {
     /// Steps per run.
@@ -143,10 +236,14 @@ pub(super) struct Plan {
     pub(super) pattern: Vec<u8>,
     /// Ones among the first `horizon` steps of the offline pattern.
     pub(super) offline_high: u64,
-    /// The blocking mask packed into words (`None`: no attacker).
+    /// The blocking mask packed into words (`None`: no mask blocking).
     pub(super) mask: Option<Vec<u64>>,
-    /// Flag-ACKs per period of the mask (1 without an attacker).
+    /// Flag-ACKs per period of the mask (1 without one).
     pub(super) mask_len: u64,
+    /// The threshold ⌊β 2^64⌋ of independent blocking (`None`: none).
+    pub(super) beta_thr: Option<u64>,
+    /// The threshold ⌊γ 2^64⌋ of forging (`None`: no forging).
+    pub(super) gamma_thr: Option<u64>,
     /// How the flag-ACK travels.
     pub(super) protocol: Protocol,
     /// Largest reachable τ, capped by the horizon.
@@ -166,27 +263,38 @@ impl Plan {
     pub(super) fn new(sys: &LinearSystem, cfg: &McConfig) -> Result<Self> {
         check_size(cfg)?;
         let mut plan = Plan::unscheduled(cfg);
-        let mask = match &cfg.schedule {
+        let attack = match &cfg.schedule {
             McSchedule::Offline { pattern } => {
                 plan.schedule_offline(pattern, cfg)?;
                 None
             }
             McSchedule::Online { z0, mu } => {
                 plan.schedule_online(*z0, *mu)?;
-                cfg.attack.as_ref().map(blocking_mask).transpose()?
+                cfg.attack.as_ref().map(attack_plan).transpose()?
             }
         };
-        if let Some(mask) = &mask {
+        let mask = attack.as_ref().and_then(|a| a.mask.as_deref());
+        if let Some(mask) = mask {
             plan.mask = Some(pack_mask(mask));
             plan.mask_len = mask.len() as u64;
         }
-        let reach = max_tau(&cfg.schedule, mask.as_deref()).unwrap_or(u64::MAX);
-        plan.bound = reach.min(cfg.horizon as u64);
+        let beta = attack.as_ref().and_then(|a| a.beta);
+        plan.beta_thr = beta.map(bernoulli_threshold);
+        plan.gamma_thr = attack
+            .as_ref()
+            .and_then(|a| a.gamma)
+            .map(bernoulli_threshold);
+        // Independent blocking with β > 0 can block any number of flags in a row.
+        let reach = match beta {
+            Some(beta) if beta > 0.0 => None,
+            _ => max_tau(&cfg.schedule, mask),
+        };
+        plan.bound = reach.unwrap_or(u64::MAX).min(cfg.horizon as u64);
         match cfg.mode {
             Mode::Covariance => plan.tr = trace_table(sys, plan.bound)?,
             Mode::State => plan.state = Some(StateModel::new(sys)?),
         }
-        plan.bitslice = plan.bitslice_plan(mask.as_deref());
+        plan.bitslice = plan.bitslice_plan(cfg, mask);
         Ok(plan)
     }
 
@@ -207,6 +315,8 @@ impl Plan {
             offline_high: 0,
             mask: None,
             mask_len: 1,
+            beta_thr: None,
+            gamma_thr: None,
             protocol: cfg.protocol,
             bound: 0,
             tr: Vec::new(),
@@ -247,28 +357,43 @@ impl Plan {
     }
 
     /// The bit-sliced kernel's plan if this experiment fits it.
-    fn bitslice_plan(&self, mask: Option<&[bool]>) -> Option<BsPlan> {
-        let depth = self.bound as usize;
+    fn bitslice_plan(&self, cfg: &McConfig, mask: Option<&[bool]>) -> Option<BsPlan> {
         let memory = if self.mu_draw {
             self.z0.saturating_add(1)
         } else {
             self.fixed_memory
         };
+        let attack = self.mask.is_some() || self.beta_thr.is_some();
         let mask_runs = mask.map(bitslice::mask_runs).unwrap_or_default();
+        let mut depth = self.bound as usize;
+        let mut deep_level = 0;
         let fits = self.state.is_none()
-            && depth <= bitslice::MAX_DEPTH
-            && (mask.is_none() || memory <= bitslice::MAX_DEPTH as u64)
+            && (!attack || memory <= bitslice::MAX_DEPTH as u64)
             && mask_runs.len() <= bitslice::MAX_MASK_RUNS;
-        fits.then(|| BsPlan {
+        // The attacks the Monte Carlo added later (independent blocking, forging) may hold
+        // the holding time in a shallower thermometer, with the rare runs beyond it tracked
+        // exactly one by one; the others keep the exact thermometer of their bound.
+        let new_kind = self.beta_thr.is_some() || self.gamma_thr.is_some();
+        if fits && new_kind && memory <= bitslice::MAX_DEPTH as u64 {
+            match deep_level_for(cfg, memory as usize, self.mask_len) {
+                Some(level) if level < depth => (depth, deep_level) = (level, level),
+                Some(_) => {}
+                None => return None,
+            }
+        }
+        (fits && depth <= bitslice::MAX_DEPTH).then(|| BsPlan {
             lam_thr: self.lam_thr,
             mu_thr: self.mu_thr,
+            beta_thr: self.beta_thr.unwrap_or(0),
+            gamma_thr: self.gamma_thr.unwrap_or(0),
             // Memory lengths beyond the depth never trigger (τ <= depth); clamp them.
             z0: self.z0.min(depth as u64 + 1) as usize,
             fixed_memory: self.fixed_memory.min(depth as u64 + 1) as usize,
             pattern: self.pattern.clone(),
             mask_runs,
             mask_len: self.mask_len,
-            tr: self.tr.clone(),
+            deep_level,
+            tr: self.tr[..=depth.min(self.tr.len().saturating_sub(1))].to_vec(),
         })
     }
 
@@ -277,8 +402,10 @@ impl Plan {
         KernelFlags {
             online: self.online,
             mu_draw: self.mu_draw,
-            attack: self.mask.is_some(),
+            attack: self.mask.is_some() || self.beta_thr.is_some(),
             protocol_a: self.protocol == Protocol::A,
+            random_block: self.beta_thr.is_some(),
+            forge: self.gamma_thr.is_some(),
         }
     }
 
@@ -288,6 +415,8 @@ impl Plan {
         Params {
             lam: SlicedThreshold::new(self.lam_thr),
             mu: SlicedThreshold::new(self.mu_thr),
+            beta: SlicedThreshold::new(self.beta_thr.unwrap_or(0)),
+            gamma: SlicedThreshold::new(self.gamma_thr.unwrap_or(0)),
             // Zero counts never exceed the horizon, so memory lengths beyond it are all alike;
             // the clamp keeps every lane value below 2^63 (signed vector compares are exact).
             z0: self.z0.min(cap),

@@ -270,6 +270,8 @@ pub(super) fn state_tile<
     const MU_DRAW: bool,
     const ATTACK: bool,
     const PROTO_A: bool,
+    const RANDOM_BLOCK: bool,
+    const FORGE: bool,
 >(
     isa: Isa,
     p: &Params,
@@ -302,7 +304,7 @@ pub(super) fn state_tile<
         }
         for sub in chunk.chunks_mut(SUB_STEPS) {
             let rows = &mut rows[..sub.len()];
-            group_rows::<ONLINE, MU_DRAW, ATTACK, PROTO_A>(
+            group_rows::<ONLINE, MU_DRAW, ATTACK, PROTO_A, RANDOM_BLOCK, FORGE>(
                 isa,
                 &tables,
                 &mut proto,

@@ -13,6 +13,7 @@ use crate::system::LinearSystem;
 mod exact;
 mod inputs;
 mod kernels;
+mod other_attacks;
 mod per_run;
 mod perf;
 

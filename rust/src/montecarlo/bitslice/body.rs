@@ -5,6 +5,7 @@
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
 
+use super::deep::DeepRuns;
 use super::words::{
     and, andnot, equals, increment, less_than, not, or, popcount, splat, xor, LaneCounter, Rng4,
     StreamStepper, BATCH, ONES, RUNS, W, ZERO,
@@ -135,10 +136,48 @@ fn attack<const PROTO_A: bool, const B: usize>(
     delivery
 }
 
-/// This step's Σ over the active lanes of `tr[τ]`, from the histogram `n[j]` = #(τ ≥ j) read off
-/// the thermometer; empty bins add nothing (a select, not a branch, and no 0 · inf). Also
-/// stores the thermometer in slot `s` of the per-lane counters' batch.
+/// The independent attacker on this step's flags: blocks them where `blocking` (its β draw,
+/// made for the flag lanes only), with no counter. Protocol A and B give the same result by
+/// different operations.
 #[inline(always)]
+fn attack_random<const PROTO_A: bool>(flag: W, blocking: W) -> Delivery {
+    if PROTO_A {
+        let bit = flag;
+        let lost = and(bit, blocking);
+        Delivery {
+            high_next: xor(bit, lost),
+            lost,
+        }
+    } else {
+        let lost = and(flag, blocking);
+        Delivery {
+            high_next: andnot(flag, lost),
+            lost,
+        }
+    }
+}
+
+/// What reaches the sensor once the attacker forges: `high_next` (the genuine flags it let
+/// through) plus a flag wherever no genuine flag was sent and `forge` (its γ draw, made for
+/// those lanes only) is set.
+#[inline(always)]
+fn forge_flags<const PROTO_A: bool>(flag: W, high_next: W, forge: W) -> W {
+    if PROTO_A {
+        // The detector's 0-bit of this step flipped to 1.
+        xor(high_next, andnot(forge, flag))
+    } else {
+        // A flag packet where the detector sent none.
+        or(high_next, andnot(forge, flag))
+    }
+}
+
+/// This step's Σ over the active lanes of `tr[τ]`, from the histogram `n[j]` = #(τ ≥ j) read off
+/// the thermometer; empty bins add nothing (a select, not a branch, and no 0 · inf). With
+/// `deep`, only the bins below `top` (the lanes at or above it are the caller's, see
+/// [`DeepRuns`]); else `top` is D and the last bin is τ ≥ D. Also stores the thermometer in
+/// slot `s` of the per-lane counters' batch.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn step_sum<const D: usize>(
     therm: &[W; D],
     active: W,
@@ -146,15 +185,22 @@ fn step_sum<const D: usize>(
     tr: &[f64; MAX_DEPTH + 1],
     batch: &mut [[W; BATCH]; D],
     s: usize,
+    top: usize,
+    deep: bool,
 ) -> f64 {
     let mut above = active_runs as u32;
     let mut v = 0.0;
     for j in 0..D {
-        let n = popcount(and(therm[j], active));
-        let x = tr[j] * f64::from(above - n);
-        v += if above != n { x } else { 0.0 };
-        above = n;
+        if j < top {
+            let n = popcount(and(therm[j], active));
+            let x = tr[j] * f64::from(above - n);
+            v += if above != n { x } else { 0.0 };
+            above = n;
+        }
         batch[j][s] = therm[j];
+    }
+    if deep {
+        return v;
     }
     let x = tr[D] * f64::from(above);
     v + if above != 0 { x } else { 0.0 }
@@ -168,12 +214,16 @@ struct Tallies<const D: usize> {
     sent: LaneCounter,
     /// Each lane's flags blocked or flipped.
     lost: LaneCounter,
+    /// Each lane's forged flags.
+    forged: LaneCounter,
     /// The current batch of thermometer words, level by level.
     level_batch: [[W; BATCH]; D],
     /// The current batch of sent flags.
     sent_batch: [W; BATCH],
     /// The current batch of lost flags.
     lost_batch: [W; BATCH],
+    /// The current batch of forged flags.
+    forged_batch: [W; BATCH],
 }
 
 impl<const D: usize> Tallies<D> {
@@ -183,16 +233,18 @@ impl<const D: usize> Tallies<D> {
             levels: [LaneCounter::NEW; D],
             sent: LaneCounter::NEW,
             lost: LaneCounter::NEW,
+            forged: LaneCounter::NEW,
             level_batch: [[ZERO; BATCH]; D],
             sent_batch: [ZERO; BATCH],
             lost_batch: [ZERO; BATCH],
+            forged_batch: [ZERO; BATCH],
         }
     }
 
     /// Adds the batch's first `n` steps to the counters (a partial last batch counts zeros in
     /// its unused slots).
     #[inline(always)]
-    fn add_batch<const ONLINE: bool, const ATTACK: bool>(&mut self, n: usize) {
+    fn add_batch<const ONLINE: bool, const ATTACK: bool, const FORGE: bool>(&mut self, n: usize) {
         for (c, d) in self.levels.iter_mut().zip(self.level_batch.iter_mut()) {
             d[n..].fill(ZERO);
             c.add16(d);
@@ -204,47 +256,65 @@ impl<const D: usize> Tallies<D> {
                 self.lost_batch[n..].fill(ZERO);
                 self.lost.add16(&self.lost_batch);
             }
+            if FORGE {
+                self.forged_batch[n..].fill(ZERO);
+                self.forged.add16(&self.forged_batch);
+            }
         }
     }
 
     /// The block's report after `horizon` steps, with totals over the `active` lanes; each
-    /// lane's delivered flag-ACKs if `record`.
+    /// lane's delivered flag-ACKs (genuine ones let through and forged ones) if `record`. With
+    /// `deep`, the histograms stop below `top` and the lanes' sums above it are `deep`'s.
     fn report(
         &self,
         horizon: usize,
         tr: &[f64; MAX_DEPTH + 1],
+        (top, deep): (usize, Option<&DeepRuns>),
         active: W,
         record: bool,
         hi_last: u64,
     ) -> BsOut {
         BsOut {
-            sum: self.lane_sums(horizon, tr),
+            sum: self.lane_sums(horizon, tr, top, deep),
             delivered: if record {
                 let (sent, lost) = (self.sent.counts(), self.lost.counts());
-                (0..RUNS).map(|l| sent[l] - lost[l]).collect()
+                let forged = self.forged.counts();
+                (0..RUNS).map(|l| sent[l] - lost[l] + forged[l]).collect()
             } else {
                 Vec::new()
             },
             sent: self.sent.total(active),
             blocked: self.lost.total(active),
+            forged: self.forged.total(active),
             hi_last,
         }
     }
 
     /// Each lane's Σ_k `tr[τ_k]` over `horizon` steps from its histogram, in the order of the
-    /// per-step sums.
-    fn lane_sums(&self, horizon: usize, tr: &[f64; MAX_DEPTH + 1]) -> Vec<f64> {
+    /// per-step sums: the bins below `top`, then the last bin τ ≥ D (`top` = D) or the lane's
+    /// sum over its steps at or above `top` (`deep`).
+    fn lane_sums(
+        &self,
+        horizon: usize,
+        tr: &[f64; MAX_DEPTH + 1],
+        top: usize,
+        deep: Option<&DeepRuns>,
+    ) -> Vec<f64> {
         let mut above = [horizon as u64; RUNS];
         let mut sum = vec![0.0; RUNS];
-        for (j, c) in self.levels.iter().enumerate() {
+        for (j, c) in self.levels.iter().enumerate().take(top) {
             for ((s, a), n) in sum.iter_mut().zip(above.iter_mut()).zip(c.counts()) {
                 let x = tr[j] * (*a - n) as f64;
                 *s += if *a != n { x } else { 0.0 };
                 *a = n;
             }
         }
-        for (s, a) in sum.iter_mut().zip(above) {
-            let x = tr[D] * a as f64;
+        for (l, (s, a)) in sum.iter_mut().zip(above).enumerate() {
+            let x = match deep {
+                Some(deep) => deep.sum[l],
+                None => tr[D] * a as f64,
+            };
             *s += if a != 0 { x } else { 0.0 };
         }
         sum
@@ -273,13 +343,17 @@ fn pattern_step(pattern: &[u8], pos: &mut usize) -> W {
 }
 
 /// The kernel on thermometers of D levels (`levels[j]` holds "≥ j + 1") and B counter planes;
-/// `stepper` steps the random streams (on AVX2 registers, or portably).
+/// `stepper` steps the random streams (on AVX2 registers, or portably). RANDOM blocks the
+/// genuine flags independently (a β draw for the lanes with a flag, no counter); FORGE forges a
+/// flag with a γ draw for the lanes without one. Draws per step: λ, μ, β, γ, in that order.
 #[inline(always)]
 pub(super) fn body<
     const ONLINE: bool,
     const MU_DRAW: bool,
     const ATTACK: bool,
     const PROTO_A: bool,
+    const RANDOM: bool,
+    const FORGE: bool,
     const D: usize,
     const B: usize,
     S: StreamStepper,
@@ -289,7 +363,14 @@ pub(super) fn body<
     cancel: &AtomicBool,
     stepper: S,
 ) -> Result<BsOut> {
-    if p.levels(MU_DRAW, ATTACK) > D || (ATTACK && p.counter_bits() > B) || b.active > RUNS {
+    // Only the kernels of the attacks that block or forge at random track deep runs.
+    let deep_level = if RANDOM || FORGE { p.deep_level } else { 0 };
+    if p.levels(MU_DRAW, ATTACK) > D
+        || (ATTACK && p.counter_bits() > B)
+        || b.active > RUNS
+        || deep_level > D
+        || (deep_level > 0 && b.deep_tr.len() <= deep_level)
+    {
         return Err(Error::invalid(
             "sys",
             "plan too large for the bit-sliced kernel",
@@ -307,6 +388,14 @@ pub(super) fn body<
     let mut tallies = Tallies::<D>::new();
     let mut pattern_pos = 0usize;
     let horizon = b.acc.len();
+    // The thermometer's top level: τ ≥ deep_level is held by level deep_level - 1 and the
+    // lanes there are tracked one by one; else every level counts.
+    let (top, deep_sel): (usize, [bool; D]) = if deep_level > 0 {
+        (deep_level, std::array::from_fn(|j| j + 1 == deep_level))
+    } else {
+        (D, [false; D])
+    };
+    let mut deep = (deep_level > 0).then(|| DeepRuns::new(deep_level));
     for (batch_index, steps) in b.acc.chunks_mut(BATCH).enumerate() {
         if (batch_index * BATCH) % CANCEL_STEPS == 0 && cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
@@ -319,9 +408,22 @@ pub(super) fn body<
             };
             // Only low-power packets need the channel's draw.
             let arrive = or(high, rng.bernoulli(stepper, p.lam_thr, not(high)));
-            // τ' = 0 on arrival, else τ + 1 (never beyond the plan's bound <= D).
+            // τ' = 0 on arrival, else τ + 1 (never beyond the plan's bound <= D, except in
+            // the lanes at or above a deep plan's top level).
             step_up(&mut therm, arrive);
-            *acc += step_sum(&therm, active, b.active, &tr, &mut tallies.level_batch, s);
+            let batch = &mut tallies.level_batch;
+            let mut v = step_sum(&therm, active, b.active, &tr, batch, s, top, deep.is_some());
+            if let Some(deep) = deep.as_mut() {
+                let now = if top == D {
+                    therm[D - 1]
+                } else {
+                    pick(&therm, &deep_sel)
+                };
+                if let Some(x) = deep.step(now, active, b.deep_tr) {
+                    v += x;
+                }
+            }
+            *acc += v;
             if !ONLINE {
                 continue;
             }
@@ -332,26 +434,37 @@ pub(super) fn body<
                 for z in zeros.iter_mut() {
                     *z = andnot(*z, flag);
                 }
-                let blocking = blocking(&sigma, &p.mask_runs);
-                let delivery = attack::<PROTO_A, B>(flag, blocking, &mut sigma, p.mask_len);
+                let delivery = if RANDOM {
+                    let blocking = rng.bernoulli(stepper, p.beta_thr, flag);
+                    attack_random::<PROTO_A>(flag, blocking)
+                } else {
+                    let blocking = blocking(&sigma, &p.mask_runs);
+                    attack::<PROTO_A, B>(flag, blocking, &mut sigma, p.mask_len)
+                };
                 lost = delivery.lost;
                 hi = delivery.high_next;
             } else {
-                // Without an attacker every flag is delivered and followed by an arrival, so
-                // the zero count equals τ whenever it matters.
+                // Without blocking every flag, genuine or forged, reaches the sensor and is
+                // followed by an arrival, so the zero count equals τ whenever it matters.
                 flag = memory.reached::<MU_DRAW, S>(&therm, &mut rng, stepper, p.mu_thr);
                 lost = ZERO;
                 hi = flag;
             }
+            if FORGE {
+                let forge = rng.bernoulli(stepper, p.gamma_thr, not(flag));
+                hi = forge_flags::<PROTO_A>(flag, hi, forge);
+                tallies.forged_batch[s] = forge;
+            }
             tallies.sent_batch[s] = flag;
             tallies.lost_batch[s] = lost;
         }
-        tallies.add_batch::<ONLINE, ATTACK>(steps.len());
+        tallies.add_batch::<ONLINE, ATTACK, FORGE>(steps.len());
     }
     let hi_last = if ONLINE {
         u64::from(popcount(and(hi, active)))
     } else {
         0
     };
-    Ok(tallies.report(horizon, &tr, active, b.record, hi_last))
+    let sums = (top, deep.as_ref());
+    Ok(tallies.report(horizon, &tr, sums, active, b.record, hi_last))
 }

@@ -85,32 +85,42 @@ struct GroupArgs<'a, 'p> {
 }
 
 /// The detector under attack and the attacker's channel, for one step of a group: updates the
-/// zero counts `$zeros`, the attacker's counters `$counter` and blocked counts `$blocked`, and
-/// `$high_next` (what reaches the sensor), and evaluates to the detector's flags. `$k` holds
-/// the loop's constants. Booleans are lane masks (all ones / all zeros).
+/// zero counts `$zeros`, the attacker's counters `$counter` (mask blocking) and blocked counts
+/// `$blocked`, and `$high_next` (what reaches the sensor), and evaluates to the detector's
+/// flags. `$k` holds the loop's constants; `$random_draw` is this step's β draw, evaluated (one
+/// slice in every lane) only under independent blocking (`$random`), which keeps no counter.
+/// Booleans are lane masks (all ones / all zeros).
 macro_rules! attacked_flag {
-    ($o:ident, $k:ident, $proto_a:ident, $arrive:ident, $memory_m1:ident,
-     $zeros:ident, $counter:ident, $blocked:ident, $high_next:ident) => {{
+    ($o:ident, $k:ident, $proto_a:ident, $random:ident, $random_draw:expr, $arrive:ident,
+     $memory_m1:ident, $zeros:ident, $counter:ident, $blocked:ident, $high_next:ident) => {{
         let z = $o::andnot($arrive, $o::add($zeros, $k.one));
         let flag = $o::gt(z, $memory_m1); // zeros >= memory
         $zeros = $o::andnot(flag, z);
-        let blocking = $o::eq($o::mask_bit($k.mask, $counter), $k.one);
+        let blocking = if $random {
+            $random_draw
+        } else {
+            $o::eq($o::mask_bit($k.mask, $counter), $k.one)
+        };
         if $proto_a {
             // Integrity attack on the per-step bit: only 1-bits are touched.
             let bit = flag;
             let flip = $o::and(bit, blocking);
-            let c = $o::add($counter, $k.one);
-            let wrap = $o::gt(c, $k.mask_len_m1);
-            let c = $o::sub(c, $o::and(wrap, $k.mask_len));
-            $counter = $o::blend(bit, c, $counter);
+            if !$random {
+                let c = $o::add($counter, $k.one);
+                let wrap = $o::gt(c, $k.mask_len_m1);
+                let c = $o::sub(c, $o::and(wrap, $k.mask_len));
+                $counter = $o::blend(bit, c, $counter);
+            }
             $blocked = $o::sub($blocked, flip);
             $high_next = $o::xor(bit, flip);
         } else {
             // DoS on the flag packet, which exists only when a flag is due.
             let drop = $o::and(flag, blocking);
-            let next = $o::add($counter, $k.one);
-            let next = $o::andnot($o::eq(next, $k.mask_len), next);
-            $counter = $o::blend(flag, next, $counter);
+            if !$random {
+                let next = $o::add($counter, $k.one);
+                let next = $o::andnot($o::eq(next, $k.mask_len), next);
+                $counter = $o::blend(flag, next, $counter);
+            }
             $blocked = $o::sub($blocked, drop);
             $high_next = $o::andnot(drop, flag);
         }
@@ -118,11 +128,29 @@ macro_rules! attacked_flag {
     }};
 }
 
+/// The attacker's forgeries for one step of a group, after the genuine flags `$flag` and what
+/// the channel let through of them (`$high_next`): where no genuine flag was sent, `$forge`
+/// (this step's γ draw) adds a flag-ACK that reaches the sensor, counted in `$forged`.
+macro_rules! forged_flag {
+    ($o:ident, $proto_a:ident, $flag:ident, $forge:expr, $high_next:ident, $forged:ident) => {{
+        let forged = $o::andnot($flag, $forge);
+        if $proto_a {
+            // The detector's 0-bit of this step flipped to 1.
+            $high_next = $o::xor($high_next, forged);
+        } else {
+            // A flag packet where the detector sent none.
+            $high_next = $o::or($high_next, forged);
+        }
+        $forged = $o::sub($forged, forged);
+    }};
+}
+
 /// The grouped covariance kernel, written once over a four-lane operation set `$o` (a module
 /// with the functions of [`lanes4`]); `$a` is a [`GroupArgs`]. Booleans are lane masks (all
 /// ones / all zeros). Evaluates to the [`SharedCursor`] at the end.
 macro_rules! group_body {
-    ($o:ident, $a:ident, $online:ident, $mu_draw:ident, $attack:ident, $proto_a:ident) => {{
+    ($o:ident, $a:ident, $online:ident, $mu_draw:ident, $attack:ident, $proto_a:ident,
+     $random:ident, $forge:ident) => {{
         let lo = 4 * $a.group;
         let p = $a.p;
         let proto = &mut *$a.proto;
@@ -135,6 +163,8 @@ macro_rules! group_body {
         };
         let lam_top = $o::splat(p.lam.top);
         let mu_top = $o::splat(p.mu.top);
+        let beta_top = $o::splat(p.beta.top);
+        let gamma_top = $o::splat(p.gamma.top);
         // Memory lengths minus one, so "zeros >= L" is the single compare "zeros > L - 1"
         // (z0 >= 1, and the plan keeps every length below 2^63).
         let z0 = $o::splat(p.z0);
@@ -148,6 +178,7 @@ macro_rules! group_body {
         let mut high_next = $o::sub($o::splat(0), $o::load(&proto.high_next[lo..lo + 4])); // 0/1 -> mask
         let mut sent = $o::load(&proto.sent[lo..lo + 4]);
         let mut blocked = $o::load(&proto.blocked[lo..lo + 4]);
+        let mut forged = $o::load(&proto.forged[lo..lo + 4]);
         let mut sum = $o::fload(&$a.sum[lo..lo + 4]);
         let mut pattern_pos = $a.start.pattern_pos;
         for row in $a.rows.iter_mut() {
@@ -179,11 +210,33 @@ macro_rules! group_body {
                 let flag;
                 if $attack {
                     flag = attacked_flag!(
-                        $o, k, $proto_a, arrive, memory_m1, zeros, counter, blocked, high_next
+                        $o,
+                        k,
+                        $proto_a,
+                        $random,
+                        rng.draw(beta_top, p.beta.rest, side),
+                        arrive,
+                        memory_m1,
+                        zeros,
+                        counter,
+                        blocked,
+                        high_next
                     );
                 } else {
+                    // Every genuine flag and every forged one is followed by an arrival, so
+                    // the zero count equals τ whenever it matters.
                     flag = $o::gt(tau, memory_m1); // τ >= memory
                     high_next = flag;
+                }
+                if $forge {
+                    forged_flag!(
+                        $o,
+                        $proto_a,
+                        flag,
+                        rng.draw(gamma_top, p.gamma.rest, side),
+                        high_next,
+                        forged
+                    );
                 }
                 sent = $o::sub(sent, flag);
             }
@@ -195,6 +248,9 @@ macro_rules! group_body {
         $o::store(&mut proto.high_next[lo..lo + 4], $o::shr::<63>(high_next));
         $o::store(&mut proto.sent[lo..lo + 4], sent);
         $o::store(&mut proto.blocked[lo..lo + 4], blocked);
+        if $forge {
+            $o::store(&mut proto.forged[lo..lo + 4], forged);
+        }
         $o::fstore(&mut $a.sum[lo..lo + 4], sum);
         SharedCursor {
             slices_left,
@@ -225,10 +281,17 @@ pub(super) fn resolve_ties4(
 }
 
 /// The grouped kernel on plain arrays.
-fn group_portable<const O: bool, const M: bool, const A: bool, const P: bool>(
+fn group_portable<
+    const O: bool,
+    const M: bool,
+    const A: bool,
+    const P: bool,
+    const RB: bool,
+    const FG: bool,
+>(
     a: GroupArgs,
 ) -> SharedCursor {
-    group_body!(lanes4, a, O, M, A, P)
+    group_body!(lanes4, a, O, M, A, P, RB, FG)
 }
 
 /// The grouped kernel on AVX2 registers. Compiled for AVX2, so calling it is `unsafe` except
@@ -237,11 +300,18 @@ fn group_portable<const O: bool, const M: bool, const A: bool, const P: bool>(
 /// bounds.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn group_avx2<const O: bool, const M: bool, const A: bool, const P: bool>(
+fn group_avx2<
+    const O: bool,
+    const M: bool,
+    const A: bool,
+    const P: bool,
+    const RB: bool,
+    const FG: bool,
+>(
     a: GroupArgs,
 ) -> SharedCursor {
     use super::lanes4_avx2 as simd;
-    group_body!(simd, a, O, M, A, P)
+    group_body!(simd, a, O, M, A, P, RB, FG)
 }
 
 /// Advances the tile's 16 runs by `rows.len()` (at most [`SUB_STEPS`]) steps with the grouped
@@ -253,6 +323,8 @@ pub(in crate::montecarlo) fn group_rows<
     const M: bool,
     const A: bool,
     const P: bool,
+    const RB: bool,
+    const FG: bool,
 >(
     isa: Isa,
     tables: &KernelTables,
@@ -284,9 +356,9 @@ pub(in crate::montecarlo) fn group_rows<
             Isa::Avx2(_token) => {
                 // SAFETY: the Avx2 token exists only where `Avx2::detect` found AVX2 on this
                 // CPU, the one feature `group_avx2` is compiled for.
-                unsafe { group_avx2::<O, M, A, P>(args) }
+                unsafe { group_avx2::<O, M, A, P, RB, FG>(args) }
             }
-            _ => group_portable::<O, M, A, P>(args),
+            _ => group_portable::<O, M, A, P, RB, FG>(args),
         };
     }
     proto.slices_left = end.slices_left;

@@ -21,14 +21,17 @@ pub(in crate::montecarlo) struct Proto {
     pub(super) tau: Lanes,
     /// The detector's count of zero ACKs since its last reset or arrival (kept under attack).
     pub(super) zeros: Lanes,
-    /// The attacker's flag counter σ, modulo the mask length.
+    /// The attacker's flag counter σ, modulo the mask length (mask blocking only).
     pub(super) counter: Lanes,
-    /// 1 where the sensor uses Δ at the next step (online).
+    /// 1 where a flag-ACK, genuine or forged, reached the sensor: it uses Δ at the next step
+    /// (online).
     pub(super) high_next: Lanes,
     /// Flag-ACKs sent by the detector.
     pub(super) sent: Lanes,
     /// Flag-ACKs blocked or flipped by the attacker.
     pub(super) blocked: Lanes,
+    /// Flag-ACKs forged by the attacker.
+    pub(super) forged: Lanes,
     /// The next step's position in the offline pattern (the same in every lane).
     pub(super) pattern_pos: usize,
 }
@@ -50,6 +53,7 @@ impl Proto {
             high_next: [1; LANES], // k = 1 is a high-power step
             sent: [0; LANES],
             blocked: [0; LANES],
+            forged: [0; LANES],
             pattern_pos: 0,
         };
         for (l, s) in seeds.iter().enumerate() {
@@ -67,6 +71,7 @@ impl Proto {
             sum,
             sent: self.sent,
             blocked: self.blocked,
+            forged: self.forged,
             hi_last: self.high_next,
         }
     }

@@ -27,44 +27,76 @@ fn mask_bit(mask: &[u64], i: u64) -> u64 {
     mask.get(w).map_or(0, |word| (word >> (i & 63)) & 1)
 }
 
-/// Protocol B: a flag packet exists only when a flag is due; the attacker drops it per its mask.
-/// Returns 1 where the sensor receives a flag.
+/// What the attacker does to the genuine flag-ACK of each lane this step: block it where
+/// `blocking` (per its mask, or its β draw).
+struct Blocking<'a> {
+    /// 1 where the attacker blocks this step's flag, if there is one.
+    blocking: &'a Lanes,
+    /// Whether blocking follows the mask over a counter (advanced on every genuine flag).
+    counted: bool,
+}
+
+/// The lanes the attacker blocks, per its mask at each lane's counter (advancing nothing).
+fn mask_blocking(counter: &Lanes, p: &Params) -> Lanes {
+    std::array::from_fn(|l| mask_bit(p.mask, counter[l]))
+}
+
+/// Protocol B: a flag packet exists only when a flag is due; the attacker drops it where
+/// `b.blocking`, and where no packet exists it forges one where `forge`. Returns 1 where the
+/// sensor receives a flag.
 #[inline(always)]
-fn channel_b(flag: &Lanes, counter: &mut Lanes, blocked: &mut Lanes, p: &Params) -> Lanes {
+fn channel_b(
+    flag: &Lanes,
+    b: Blocking,
+    forge: &Lanes,
+    proto: &mut (Lanes, Lanes, Lanes),
+    p: &Params,
+) -> Lanes {
+    let (counter, blocked, forged) = proto;
     let mut delivered = [0u64; LANES];
     for l in 0..LANES {
         let packet = flag[l] != 0;
-        let drop = u64::from(packet) & mask_bit(p.mask, counter[l]);
-        let next = if counter[l] + 1 == p.mask_len {
-            0
-        } else {
-            counter[l] + 1
-        };
-        if packet {
-            counter[l] = next;
+        let drop = u64::from(packet) & b.blocking[l];
+        if packet && b.counted {
+            counter[l] = if counter[l] + 1 == p.mask_len {
+                0
+            } else {
+                counter[l] + 1
+            };
         }
+        let fake = u64::from(!packet) & forge[l];
         blocked[l] += drop;
-        delivered[l] = u64::from(packet) & (drop ^ 1);
+        forged[l] += fake;
+        delivered[l] = (u64::from(packet) & (drop ^ 1)) | fake;
     }
     delivered
 }
 
-/// Protocol A: one bit every step (1 = flag); the attacker looks at 1-bits only and flips them to
-/// 0 per its mask. Returns the bit the sensor receives.
+/// Protocol A: one bit every step (1 = flag); the attacker flips 1-bits to 0 where
+/// `b.blocking` and 0-bits to 1 where `forge`. Returns the bit the sensor receives.
 #[inline(always)]
-fn channel_a(flag: &Lanes, counter: &mut Lanes, blocked: &mut Lanes, p: &Params) -> Lanes {
+fn channel_a(
+    flag: &Lanes,
+    b: Blocking,
+    forge: &Lanes,
+    proto: &mut (Lanes, Lanes, Lanes),
+    p: &Params,
+) -> Lanes {
+    let (counter, blocked, forged) = proto;
     let mut received = [0u64; LANES];
     for l in 0..LANES {
         let bit = flag[l]; // the detector's 1-bit ACK of this step
         let flip = if bit == 1 {
-            let f = mask_bit(p.mask, counter[l]);
-            let c = counter[l] + 1;
-            counter[l] = if c >= p.mask_len { c - p.mask_len } else { c };
-            f
+            if b.counted {
+                let c = counter[l] + 1;
+                counter[l] = if c >= p.mask_len { c - p.mask_len } else { c };
+            }
+            blocked[l] += b.blocking[l];
+            b.blocking[l]
         } else {
-            0
+            forged[l] += forge[l];
+            forge[l]
         };
-        blocked[l] += flip;
         received[l] = bit ^ flip;
     }
     received
@@ -128,13 +160,16 @@ impl Proto {
     }
 
     /// Step k: returns 1 where the packet arrives, and updates τ, the detector, the channel and
-    /// the attacker (the per-lane reference the grouped kernels are tested against).
+    /// the attacker (the per-lane reference the grouped kernels are tested against). Draws, one
+    /// slice in every lane each: λ, then μ (if drawn), β (independent blocking), γ (forging).
     #[inline(always)]
     pub(super) fn step<
         const ONLINE: bool,
         const MU_DRAW: bool,
         const ATTACK: bool,
         const PROTO_A: bool,
+        const RANDOM_BLOCK: bool,
+        const FORGE: bool,
     >(
         &mut self,
         p: &Params,
@@ -160,7 +195,19 @@ impl Proto {
             } else {
                 [p.fixed_memory; LANES]
             };
-            let flag = self.detect_and_attack::<ATTACK, PROTO_A>(p, &arrive, &memory);
+            let random = if ATTACK && RANDOM_BLOCK {
+                self.bernoulli(p.beta.top, p.beta.rest, side)
+            } else {
+                [0; LANES]
+            };
+            let forge = if FORGE {
+                self.bernoulli(p.gamma.top, p.gamma.rest, side)
+            } else {
+                [0; LANES]
+            };
+            let flag = self.detect_and_attack::<ATTACK, PROTO_A, RANDOM_BLOCK, FORGE>(
+                p, &arrive, &memory, &random, &forge,
+            );
             for (s, f) in self.sent.iter_mut().zip(flag) {
                 *s += f;
             }
@@ -169,26 +216,56 @@ impl Proto {
     }
 
     /// The detector's flag-ACKs this step (1 = flag) given the arrivals and the memory lengths,
-    /// and what reaches the sensor through the attacker (`high_next`).
+    /// and what reaches the sensor through the attacker (`high_next`): genuine flags not
+    /// blocked (per the mask, or where `random`) and, where there is no genuine flag, forged
+    /// ones (where `forge`).
     #[inline(always)]
-    fn detect_and_attack<const ATTACK: bool, const PROTO_A: bool>(
+    fn detect_and_attack<
+        const ATTACK: bool,
+        const PROTO_A: bool,
+        const RANDOM_BLOCK: bool,
+        const FORGE: bool,
+    >(
         &mut self,
         p: &Params,
         arrive: &Lanes,
         memory: &Lanes,
+        random: &Lanes,
+        forge: &Lanes,
     ) -> Lanes {
         let mut flag = [0u64; LANES];
-        if ATTACK {
-            for l in 0..LANES {
-                let z = if arrive[l] != 0 { 0 } else { self.zeros[l] + 1 };
-                flag[l] = u64::from(z >= memory[l]);
-                self.zeros[l] = if flag[l] != 0 { 0 } else { z };
-            }
-            self.high_next = if PROTO_A {
-                channel_a(&flag, &mut self.counter, &mut self.blocked, p)
+        if ATTACK || FORGE {
+            if ATTACK {
+                for l in 0..LANES {
+                    let z = if arrive[l] != 0 { 0 } else { self.zeros[l] + 1 };
+                    flag[l] = u64::from(z >= memory[l]);
+                    self.zeros[l] = if flag[l] != 0 { 0 } else { z };
+                }
             } else {
-                channel_b(&flag, &mut self.counter, &mut self.blocked, p)
+                // Every flag, genuine or forged, reaches the sensor and is followed by an
+                // arrival, so the zero count equals τ whenever it matters.
+                for l in 0..LANES {
+                    flag[l] = u64::from(self.tau[l] >= memory[l]);
+                }
+            }
+            let by_mask = if ATTACK && !RANDOM_BLOCK {
+                mask_blocking(&self.counter, p)
+            } else {
+                [0; LANES]
             };
+            let b = Blocking {
+                blocking: if RANDOM_BLOCK { random } else { &by_mask },
+                counted: ATTACK && !RANDOM_BLOCK,
+            };
+            let none = [0; LANES];
+            let forge = if FORGE { forge } else { &none };
+            let mut state = (self.counter, self.blocked, self.forged);
+            self.high_next = if PROTO_A {
+                channel_a(&flag, b, forge, &mut state, p)
+            } else {
+                channel_b(&flag, b, forge, &mut state, p)
+            };
+            (self.counter, self.blocked, self.forged) = state;
         } else {
             // Without an attacker every flag is delivered and followed by an arrival, so the
             // zero count equals τ whenever it matters.
@@ -207,6 +284,8 @@ pub(super) fn cov_tile_reference<
     const MU_DRAW: bool,
     const ATTACK: bool,
     const PROTO_A: bool,
+    const RANDOM_BLOCK: bool,
+    const FORGE: bool,
 >(
     p: &Params,
     tr: &[f64],
@@ -225,7 +304,7 @@ pub(super) fn cov_tile_reference<
             return Err(Error::Interrupted);
         }
         for acc in chunk.iter_mut() {
-            proto.step::<ONLINE, MU_DRAW, ATTACK, PROTO_A>(p, side);
+            proto.step::<ONLINE, MU_DRAW, ATTACK, PROTO_A, RANDOM_BLOCK, FORGE>(p, side);
             let mut v = [0.0f64; LANES];
             for l in 0..LANES {
                 let x = tr[(proto.tau[l] as usize).min(last)];

@@ -159,6 +159,39 @@ fn speed_cases() -> Vec<(&'static str, McConfig)> {
         ),
         ("online mu=0.4 attack B", online(0.5, 2, 0.4, attack())),
         (
+            "online attack 1/5 B",
+            online(0.5, 2, 1.0, Some(vec![true, false, false, false, false])),
+        ),
+        (
+            "online random 0.2 B",
+            McConfig {
+                attack: Some(Attack::random(0.2).unwrap()),
+                ..online(0.5, 2, 1.0, None)
+            },
+        ),
+        (
+            "online random 0.2 A",
+            McConfig {
+                attack: Some(Attack::random(0.2).unwrap()),
+                protocol: Protocol::A,
+                ..online(0.5, 2, 1.0, None)
+            },
+        ),
+        (
+            "online inject 0.05 B",
+            McConfig {
+                attack: Some(Attack::injection(0.05, None).unwrap()),
+                ..online(0.5, 2, 1.0, None)
+            },
+        ),
+        (
+            "online inject 0.05+random 0.2 B",
+            McConfig {
+                attack: Some(Attack::injection(0.05, Some(Attack::random(0.2).unwrap())).unwrap()),
+                ..online(0.5, 2, 1.0, None)
+            },
+        ),
+        (
             "offline 1/7",
             McConfig {
                 schedule: offline.clone(),
