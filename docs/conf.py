@@ -9,6 +9,7 @@ built pages against ``__all__``.
 from __future__ import annotations
 
 import inspect
+import re
 import shutil
 from pathlib import Path
 
@@ -139,6 +140,15 @@ def _data_docstring(app, what, name, obj, options, lines) -> None:
         lines[:] = [DATA_DOCS.get(name.rpartition(".")[2], "A constant of the compiled core."), ""]
 
 
+# autosummary ends a summary at the first ". ", which cuts "(paper, Sec. II-A, ...)" short; a word
+# joiner (invisible, not a space) after the abbreviation's period keeps the sentence whole.
+_ABBREVIATION = re.compile(r"\b(Sec|Secs|Eq|Eqs|eq|eqs|Fig|Figs|Prop|Thm|cf|ref)\.( |$)")
+
+
+def _keep_abbreviations(app, what, name, obj, options, lines) -> None:
+    lines[:] = [_ABBREVIATION.sub("\\1.\u2060\\2", line) for line in lines]
+
+
 def _copy_rustdoc(app, exception) -> None:
     built = ROOT / "target" / "doc"
     if exception is None and app.builder.format == "html" and (built / "fakeack").is_dir():
@@ -178,4 +188,5 @@ html_show_sourcelink = False
 
 def setup(app) -> None:
     app.connect("autodoc-process-docstring", _data_docstring)
+    app.connect("autodoc-process-docstring", _keep_abbreviations)
     app.connect("build-finished", _copy_rustdoc)
