@@ -47,6 +47,12 @@ pub fn tau_needed(z0: u64, kmax: u64) -> u128 {
     (kmax as u128 + 1) * (z0 as u128 + 1)
 }
 
+/// The masses c^τ, τ = 0..n, of a walk's steps without a genuine flag (they depend on λ and γ
+/// only, not on the memory).
+pub fn masses(walk: &Walk, n: usize) -> Vec<f64> {
+    (0..n).map(|tau| walk.c_pow(tau as u64)).collect()
+}
+
 fn prefix(v: &[f64]) -> Vec<f64> {
     let mut out = Vec::with_capacity(v.len() + 1);
     let mut acc = 0.0;
@@ -67,13 +73,23 @@ impl Segments {
 
     /// Segments 0..=kmax of a walk with forged flags, from `wtr[τ] = c^τ Tr h^τ(P̄)`.
     pub fn of_walk(wtr: &[f64], walk: &Walk, kmax: u64) -> Result<Self> {
-        let OnlineDesign { z0, mu } = walk.design;
-        let need = tau_needed(z0, kmax) as usize + 1;
+        let need = tau_needed(walk.design.z0, kmax) as usize + 1;
         if wtr.len() < need {
             return Err(Error::invalid("w", format!("needs {need} weighted traces")));
         }
-        let mass: Vec<f64> = (0..need).map(|tau| walk.c_pow(tau as u64)).collect();
-        let (mut w, mut m) = segment_sums(&wtr[..need], &mass, z0, mu, kmax);
+        Self::of_walk_with_masses(wtr, &masses(walk, need), walk, kmax)
+    }
+
+    /// [`Segments::of_walk`] with the masses `c^τ` already computed by [`masses`] (at least
+    /// [`tau_needed`] + 1 of them, for any walk with the same λ and γ): callers that build
+    /// segments for many designs at one λ compute them once.
+    pub fn of_walk_with_masses(wtr: &[f64], mass: &[f64], walk: &Walk, kmax: u64) -> Result<Self> {
+        let OnlineDesign { z0, mu } = walk.design;
+        let need = tau_needed(z0, kmax) as usize + 1;
+        if wtr.len() < need || mass.len() < need {
+            return Err(Error::invalid("w", format!("needs {need} weighted traces")));
+        }
+        let (mut w, mut m) = segment_sums(&wtr[..need], &mass[..need], z0, mu, kmax);
         scale_by_block_factor(&mut w, walk);
         scale_by_block_factor(&mut m, walk);
         Ok(Segments {
