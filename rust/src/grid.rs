@@ -207,6 +207,8 @@ struct Shared {
     /// c^τ Tr h^τ(P̄) with the walk's c, as [`Segments::for_system`] computes them (`None`
     /// when c is bit for bit 1 - λ: then `w_cost` serves).
     w_walk: Option<Vec<f64>>,
+    /// The walk's masses c^τ ([`pattern::masses`]), as [`Segments::of_walk`] computes them.
+    masses: Vec<f64>,
     j_max: f64,
 }
 
@@ -219,9 +221,8 @@ impl Shared {
         study: &Study,
     ) -> Option<Self> {
         let j_max = sys.j_max(lam).ok()?;
-        let c = Walk::new(lam, OnlineDesign::fixed(1).ok()?, 0.0)
-            .ok()?
-            .continuation();
+        let walk = Walk::new(lam, OnlineDesign::fixed(1).ok()?, 0.0).ok()?;
+        let c = walk.continuation();
         let same = c.to_bits() == (1.0 - lam).to_bits();
         let (mut n_cost, mut n_walk) = (0u128, 0u128);
         for cell in cells {
@@ -238,6 +239,7 @@ impl Shared {
         Some(Shared {
             w_cost,
             w_walk,
+            masses: pattern::masses(&walk, n_walk as usize + 1),
             j_max,
         })
     }
@@ -299,7 +301,7 @@ fn shared_cell(sys: &LinearSystem, cell: &Cell, study: &Study, sh: &Shared) -> R
     out.j_online = schedules::j_online(&sh.w_cost[..z0 + 2], lam, design)?;
     // LinearSystem::beta_bar: segments 0..t_max-1 of the walk.
     let walk = Walk::new(lam, design, 0.0)?;
-    let seg = Segments::of_walk(sh.walk_traces(), &walk, study.t_max - 1)?;
+    let seg = Segments::of_walk_with_masses(sh.walk_traces(), &sh.masses, &walk, study.t_max - 1)?;
     out.beta_bar_finite = sweep::first_crossing(&seg, study.t_max, out.j_offline)?;
     out.beta_bar_limit = pattern::beta_limit_threshold(&seg, lam, sh.j_max, out.j_offline);
     // Segment 0 (all that j_attack_limit builds) is the same whatever the depth.

@@ -47,6 +47,12 @@ pub fn tau_needed(z0: u64, kmax: u64) -> u128 {
     (kmax as u128 + 1) * (z0 as u128 + 1)
 }
 
+/// The masses c^τ, τ = 0..n, of a walk's steps without a genuine flag (they depend on λ and γ
+/// only, not on the memory).
+pub fn masses(walk: &Walk, n: usize) -> Vec<f64> {
+    (0..n).map(|tau| walk.c_pow(tau as u64)).collect()
+}
+
 fn prefix(v: &[f64]) -> Vec<f64> {
     let mut out = Vec::with_capacity(v.len() + 1);
     let mut acc = 0.0;
@@ -67,13 +73,23 @@ impl Segments {
 
     /// Segments 0..=kmax of a walk with forged flags, from `wtr[τ] = c^τ Tr h^τ(P̄)`.
     pub fn of_walk(wtr: &[f64], walk: &Walk, kmax: u64) -> Result<Self> {
-        let OnlineDesign { z0, mu } = walk.design;
-        let need = tau_needed(z0, kmax) as usize + 1;
+        let need = tau_needed(walk.design.z0, kmax) as usize + 1;
         if wtr.len() < need {
             return Err(Error::invalid("w", format!("needs {need} weighted traces")));
         }
-        let mass: Vec<f64> = (0..need).map(|tau| walk.c_pow(tau as u64)).collect();
-        let (mut w, mut m) = segment_sums(&wtr[..need], &mass, z0, mu, kmax);
+        Self::of_walk_with_masses(wtr, &masses(walk, need), walk, kmax)
+    }
+
+    /// [`Segments::of_walk`] with the masses `c^τ` already computed by [`masses`] (at least
+    /// [`tau_needed`] + 1 of them, for any walk with the same λ and γ): callers that build
+    /// segments for many designs at one λ compute them once.
+    pub fn of_walk_with_masses(wtr: &[f64], mass: &[f64], walk: &Walk, kmax: u64) -> Result<Self> {
+        let OnlineDesign { z0, mu } = walk.design;
+        let need = tau_needed(z0, kmax) as usize + 1;
+        if wtr.len() < need || mass.len() < need {
+            return Err(Error::invalid("w", format!("needs {need} weighted traces")));
+        }
+        let (mut w, mut m) = segment_sums(&wtr[..need], &mass[..need], z0, mu, kmax);
         scale_by_block_factor(&mut w, walk);
         scale_by_block_factor(&mut m, walk);
         Ok(Segments {
@@ -304,66 +320,71 @@ pub fn first_r_j(t: f64, w0: f64, a_r: f64, m0: f64, b_r: f64) -> f64 {
 /// Segment sums Σ_i C(k,i) μ^(k-i) (1-μ)^i Z_k(k z0 + i) of two per-τ weights `v` and `u` (the
 /// weighted traces and the masses), where Z_0(s) = Σ_{z=0..z0} v[s+z] + (1-μ) v[s+z0+1] and
 /// Z_k(s) = Z_0(s) - v[s] for k ≥ 1. Both share one pass over the binomial weights (O(kmax²)
-/// for μ < 1); each sum adds its terms in the order of i, as two separate passes would.
+/// for μ < 1). Each sum adds its terms in the order of i, starting from the value an empty
+/// `Iterator::sum` starts from, so the results are those of `.sum()` over each vector alone.
 fn segment_sums(v: &[f64], u: &[f64], z0: u64, mu: f64, kmax: u64) -> (Vec<f64>, Vec<f64>) {
     let z = z0 as usize;
     let (pre_v, pre_u) = (prefix(v), prefix(u));
-    let zsum = |pre: &[f64], x: &[f64], s: usize, k: usize| {
-        let first = if k == 0 { s } else { s + 1 };
-        let tail = if mu < 1.0 {
-            (1.0 - mu) * x[s + z + 1]
-        } else {
-            0.0
-        };
-        let sum = pre[s + z + 1] - pre[first] + tail;
-        // The terms are non-negative and overflow only from some τ on (the traces grow
-        // geometrically), so inf - inf means a segment beyond the double range: +inf, not NaN.
-        if sum.is_nan() {
-            f64::INFINITY
-        } else {
-            sum
-        }
-    };
     let n = kmax as usize + 1;
     let (mut out_v, mut out_u) = (Vec::with_capacity(n), Vec::with_capacity(n));
+    let one_mu = 1.0 - mu;
+    // Z_k(k z0 + i) for i = 0..len: a difference of prefix sums plus the long interval's tail.
+    let zsums = |out: &mut Vec<f64>, pre: &[f64], x: &[f64], k: usize, len: usize| {
+        let (base, first) = (k * z, usize::from(k > 0));
+        let ends = &pre[base + z + 1..base + z + 1 + len];
+        let starts = &pre[base + first..base + first + len];
+        let tails = &x[base + z + 1..base + z + 1 + len];
+        out.clear();
+        out.extend(ends.iter().zip(starts).zip(tails).map(|((e, s), t)| {
+            let tail = if one_mu > 0.0 { one_mu * t } else { 0.0 };
+            let sum = e - s + tail;
+            // The terms are non-negative and overflow only from some τ on (the traces
+            // grow geometrically), so inf - inf is a segment beyond the double range:
+            // +inf, not NaN.
+            if sum.is_nan() {
+                f64::INFINITY
+            } else {
+                sum
+            }
+        }));
+    };
     if mu == 1.0 {
+        let (mut zv, mut zu) = (Vec::with_capacity(1), Vec::with_capacity(1));
         for k in 0..n {
-            out_v.push(zsum(&pre_v, v, k * z, k));
-            out_u.push(zsum(&pre_u, u, k * z, k));
+            zsums(&mut zv, &pre_v, v, k, 1);
+            zsums(&mut zu, &pre_u, u, k, 1);
+            out_v.push(zv[0]);
+            out_u.push(zu[0]);
         }
         return (out_v, out_u);
     }
-    // Binomial law of the number of long intervals, advanced one segment at a time:
-    // next[i] = μ binom[i] + (1-μ) binom[i-1] (terms >= 0, so no signed zero to mind).
-    let mut binom = Vec::with_capacity(n + 1);
-    let mut next = Vec::with_capacity(n + 1);
+    let empty_sum: f64 = std::iter::empty::<f64>().sum();
+    let mut binom: Vec<f64> = Vec::with_capacity(n + 1);
+    let mut next: Vec<f64> = Vec::with_capacity(n + 1);
+    let (mut zv, mut zu) = (Vec::with_capacity(n + 1), Vec::with_capacity(n + 1));
     binom.push(1.0);
     for k in 0..n {
-        let term = |pre: &[f64], x: &[f64], i: usize, b: f64| {
-            if b == 0.0 {
-                0.0
+        let len = binom.len();
+        zsums(&mut zv, &pre_v, v, k, len);
+        zsums(&mut zu, &pre_u, u, k, len);
+        let (mut tv, mut tu) = (empty_sum, empty_sum);
+        for ((&b, &sv), &su) in binom.iter().zip(&zv).zip(&zu) {
+            let (x, y) = if b == 0.0 {
+                (0.0, 0.0)
             } else {
-                b * zsum(pre, x, k * z + i, k)
-            }
-        };
-        let tv: f64 = binom
-            .iter()
-            .enumerate()
-            .map(|(i, &b)| term(&pre_v, v, i, b))
-            .sum();
-        let tu: f64 = binom
-            .iter()
-            .enumerate()
-            .map(|(i, &b)| term(&pre_u, u, i, b))
-            .sum();
+                (b * sv, b * su)
+            };
+            tv += x;
+            tu += y;
+        }
         out_v.push(tv);
         out_u.push(tu);
+        // Binomial law of the number of long intervals, one segment on:
+        // next[i] = (1-μ) binom[i-1] + μ binom[i] (terms >= 0, so no signed zero to mind).
         next.clear();
         next.push(mu * binom[0]);
-        for i in 1..binom.len() {
-            next.push((1.0 - mu) * binom[i - 1] + mu * binom[i]);
-        }
-        next.push((1.0 - mu) * binom[binom.len() - 1]);
+        next.extend(binom.windows(2).map(|w| one_mu * w[0] + mu * w[1]));
+        next.push(one_mu * binom[len - 1]);
         std::mem::swap(&mut binom, &mut next);
     }
     (out_v, out_u)
