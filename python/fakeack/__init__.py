@@ -28,7 +28,15 @@ from .detection import (
     flag_interval_moments,
     flag_rates,
 )
+from .detectors import (
+    IntervalDetection,
+    IntervalTest,
+    detect_intervals,
+    detection_probability,
+    interval_test,
+)
 from .grid import study_grid
+from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
 from .montecarlo import (
     AttackPattern,
     OfflineSchedule,
@@ -90,6 +98,15 @@ __all__ = [
     "estimate_beta",
     "flag_interval_moments",
     "flag_rates",
+    "FlagCount",
+    "IntervalDetection",
+    "IntervalLaw",
+    "IntervalTest",
+    "detect_intervals",
+    "detection_probability",
+    "flag_count_moments",
+    "flag_interval_law",
+    "interval_test",
     "study_grid",
     "AttackPattern",
     "OfflineSchedule",

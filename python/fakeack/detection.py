@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
-from scipy.special import ndtr, ndtri
+from scipy.special import ndtri
 
 from . import _fakeack
 from ._validate import as_int, as_probability
@@ -189,6 +189,8 @@ def estimate_beta(delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0
         raise ValueError(f"delivered must not exceed n_steps = {n}, got {d}")
     f_on, f_blk = _regime_rates(lam, z0, mu)
     rho = d / n
+    if rho >= f_on:  # at least the attack-free rate (the formula's denominator can vanish here)
+        return 0.0
     beta = (1.0 - rho / f_on) / (1.0 + rho / f_blk - rho / f_on)
     return float(min(max(beta, 0.0), 1.0))
 
@@ -201,24 +203,35 @@ class Detection:
     z_score: float
     """(observed - expected delivered flags) / standard deviation under no attack."""
     p_value: float
-    """One-sided: P[as few delivered flags | no attacker] (normal approximation)."""
+    """P[a count at least this extreme | no attacker] (normal approximation): as few flags for
+    ``alternative="less"``, as many for ``"greater"``, either for ``"two-sided"``."""
     beta_hat: float
     delivered: int
     expected: float
     n_steps: int
     alpha: float
+    alternative: str = "less"
 
 
 def detect_attack(
-    delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0, alpha: Any = 0.01
+    delivered: Any,
+    n_steps: Any,
+    lam: Any,
+    z0: Any,
+    mu: Any = 1.0,
+    alpha: Any = 0.01,
+    alternative: str = "less",
 ) -> Detection:
     r"""Test for a fake-ACK attacker from the count of flag-ACKs received in ``n_steps`` steps.
 
     Without attack, inter-flag intervals are i.i.d. with mean m and variance v
     (:func:`flag_interval_moments`), so by the renewal central limit theorem the count N over n
-    steps is approximately :math:`\mathcal N(n/m,\, n v/m^3)`. An attacker only removes flags, so
-    the test is one-sided: reject "no attacker" at level α when
-    :math:`z = (N - n/m)/\sqrt{n v/m^3} < \Phi^{-1}(\alpha)`.
+    steps is approximately :math:`\mathcal N(n/m,\, n v/m^3)`, and
+    :math:`z = (N - n/m)/\sqrt{n v/m^3}`. Blocking removes flags, forging adds them: with
+    ``alternative="less"`` (the default) "no attacker" is rejected at level α when
+    :math:`\Phi(z) < \alpha`, with ``"greater"`` when :math:`\Phi(-z) < \alpha`, with
+    ``"two-sided"`` when :math:`2\min(\Phi(z), \Phi(-z)) < \alpha` (the alternatives of
+    scipy.stats). :func:`fakeack.detect_intervals` also looks at when the flags came.
 
     Parameters
     ----------
@@ -230,17 +243,22 @@ def detect_attack(
         The online schedule's parameters.
     alpha : float
         False-alarm probability, in (0, 1).
+    alternative : {"less", "greater", "two-sided"}
+        Which counts are alarms: too few (blocking; default), too many (forging), or either.
     """
+    from .detectors import check_alternative, count_p_value, count_z
+
     lam, z0, mu = _online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1)
     d = as_int("delivered", delivered, minimum=0)
     alpha = as_probability("alpha", alpha)
+    alternative = check_alternative(alternative)
     m, v = flag_interval_moments(lam, z0, mu)
     expected = n / m
-    sd = math.sqrt(n * v / m**3)
-    z = (d - expected) / sd if sd > 0 else (0.0 if d == expected else -math.inf)
-    p = float(ndtr(z))
-    return Detection(p < alpha, z, p, estimate_beta(d, n, lam, z0, mu), d, expected, n, alpha)
+    z = count_z(d, n, m, v)
+    p = count_p_value(z, alternative)
+    beta = estimate_beta(d, n, lam, z0, mu)
+    return Detection(p < alpha, z, p, beta, d, expected, n, alpha, alternative)
 
 
 @dataclass(frozen=True)

@@ -143,7 +143,11 @@ def _text(outcome: _Outcome) -> str:
         "(k -> infinity; J_H differs by the transient)",
         f"  high-power rate {res.high_power_rate:.6f}; flag-ACKs sent {res.flags_sent:.6f}/step, "
         f"blocked {res.flags_blocked:.6f}/step"
-        + ("" if not isinstance(attack, FlagInjection) else f", forged {res.flags_forged:.6f}/step (taken for genuine)"),
+        + (
+            ""
+            if not isinstance(attack, FlagInjection)
+            else f", forged {res.flags_forged:.6f}/step (taken for genuine)"
+        ),
     ]
     if res.mode == "state":
         lines.append("  (state mode: the squared estimation error averaged over runs; its mean is Tr E[P_k])")
