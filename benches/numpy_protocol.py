@@ -170,7 +170,9 @@ def simulate(
         mu_draw = 0.0 < mu < 1.0
     else:
         if mask is not None or beta is not None or gamma:
-            raise ValueError("an offline schedule sends no flag-ACK: mask, beta and gamma apply to online only")
+            raise ValueError(
+                "an offline schedule sends no flag-ACK: mask, beta and gamma apply to online only"
+            )
         pat = np.asarray(pattern, dtype=np.int8)
         if pat.ndim != 1 or pat.size == 0 or pat[0] != 1 or not np.isin(pat, (0, 1)).all():
             raise ValueError("pattern must be a non-empty 0/1 sequence starting with 1")
