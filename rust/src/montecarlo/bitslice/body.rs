@@ -1,6 +1,9 @@
 //! The bit-sliced kernel's body: one block of [`RUNS`] runs, step by step, on bit-planes. Its
 //! helpers are `#[inline(always)]` so that, as in one function, the thermometers and the counter
 //! planes stay in registers and the level loops unroll.
+//!
+//! (Over 450 lines: the step's helpers must stay in one module to be inlined into one loop; the
+//! independent-blocking and forging paths added the last ~60.)
 
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, Ordering};
