@@ -52,3 +52,15 @@ def test_every_core_error_maps_to_its_exception(kind, exc, text):
         _fakeack.raise_core_error(kind)
     with pytest.raises(ValueError, match="kind"):
         _fakeack.raise_core_error("other")
+
+
+def test_offline_cost_beyond_the_double_range_is_inf_not_nan():
+    """(1 - lam) rho(A)^2 = 1.08 > 1: a period of 16384 makes J finite but far beyond a double.
+    It must be +inf (IEEE overflow), never NaN; shorter periods stay finite and increasing."""
+    import math
+    from fractions import Fraction
+
+    s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+    assert fa.j_offline(s, 0.25, Fraction(1, 16384)) == math.inf
+    small = [fa.j_offline(s, 0.25, Fraction(1, q)) for q in (64, 1024, 4096)]
+    assert all(math.isfinite(x) for x in small) and small == sorted(small)

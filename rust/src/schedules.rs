@@ -132,9 +132,16 @@ pub fn j_offline(w: &[f64], lam: f64, ratio: Ratio) -> Result<f64> {
             format!("needs {} weighted traces", s0 + 2),
         ));
     }
-    let total =
-        long as f64 * block_cost(w, lam, s0 + 2) + short as f64 * block_cost(w, lam, s0 + 1);
-    Ok(total / ratio.q() as f64)
+    // A block kind that does not occur adds nothing, even where its cost is beyond the double
+    // range (0 * inf would be NaN); a J beyond the double range is +inf.
+    let part = |count: u64, len: u64| {
+        if count == 0 {
+            0.0
+        } else {
+            count as f64 * block_cost(w, lam, len)
+        }
+    };
+    Ok((part(long, s0 + 2) + part(short, s0 + 1)) / ratio.q() as f64)
 }
 
 /// J of the online schedule (corrected Theorem 4.5): λ / (1 - μ a^(z0+1) - (1-μ) a^(z0+2)) ·
@@ -255,6 +262,15 @@ mod tests {
                 "{p}/{q}: {closed} vs {direct}"
             );
         }
+    }
+
+    #[test]
+    fn offline_cost_beyond_the_double_range_is_inf() {
+        // p/q = 1/8: only blocks of length 8 (long = 0); traces overflowing from i = 7 on.
+        let mut w = vec![1.0; 7];
+        w.extend([f64::INFINITY; 3]);
+        assert_eq!(ratio(1, 8).offline_blocks().long, 0);
+        assert_eq!(j_offline(&w, 0.25, ratio(1, 8)).unwrap(), f64::INFINITY);
     }
 
     #[test]
