@@ -7,7 +7,7 @@
 
 :func:`detection_probability` gives the probability that either test raises an alarm in one window
 under any attack (``None``: the false-alarm rate), from the exact laws of
-:mod:`fakeack.intervals` and the stated normal approximations.
+``fakeack.intervals`` and the stated normal approximations.
 
 (Over 450 lines: both tests and their power share the gap-law bins and moments; the
 detection_probability part is the next to move to a module of its own.)
@@ -241,15 +241,16 @@ def interval_test(lam: Any, z0: Any, n_steps: Any, alpha: Any = 0.01, mu: Any = 
 
     **Why this test.** A likelihood-ratio test needs the attack's law, which the sensor does not
     know; a goodness-of-fit test against the exact attack-free law catches any change of shape:
-    blocking lengthens gaps, forging shortens them, and rate matching (:func:`fakeack.
-    rate_matching_attack`) mixes both while keeping the mean, so the count test cannot see it.
+    blocking lengthens gaps, forging shortens them, and rate matching
+    (:func:`fakeack.rate_matching_attack`) mixes both while keeping the mean, so the count test
+    cannot see it.
     Expected counts from the window length (not from the observed number of gaps) make the test
     see the count too: an attacker who removes every flag leaves :math:`X^2 = \sum E_i`, an alarm.
 
     **Its law.** The bin counts over a fixed time are not multinomial (the number of gaps is
     random, and the gaps are serially dependent under a periodic attack), so :math:`X^2` is not
     :math:`\chi^2`. By the Markov renewal central limit theorem the counts are asymptotically
-    normal with the exact mean and covariance of :mod:`fakeack.intervals`, so
+    normal with the exact mean and covariance of ``fakeack.intervals``, so
     :math:`X^2 \approx \sum_j \lambda_j (Z_j + b_j)^2` (a generalised chi-square) with
     :math:`\lambda_j` the eigenvalues of :math:`D^{-1/2} \Sigma D^{-1/2}` (D = diag(E)) and b the
     attack's mean shift in that basis; without attack b = 0 and the weights are near 1. Tails use

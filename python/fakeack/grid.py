@@ -384,7 +384,7 @@ def study_grid(
     ValueError
         Before any work starts, for a malformed grid: an empty axis, a value out of range, a
         duplicate coordinate, a ratio that no lam of the grid can meet (or a lam no ratio), an
-        unknown family or Monte Carlo key; for a store that cannot be resumed (:class:`StoreError`).
+        unknown family or Monte Carlo key; for a store that cannot be resumed (``fakeack.grid.StoreError``).
     """
     ds, _ = run_study(
         systems, lam, ratio, beta, family, t_max, montecarlo, executor, store, resume, block, progress

@@ -307,7 +307,7 @@ def simulate(
     attack : None, attack, (r, t) or str, optional
         Fake-ACK attack (online schedules only): :class:`fakeack.PeriodicBlocking`,
         :class:`fakeack.MaskBlocking`, :class:`fakeack.RandomBlocking`,
-        :class:`fakeack.FlagInjection`, or any spelling :func:`fakeack.attacks.as_attack` reads
+        :class:`fakeack.FlagInjection`, or any spelling ``fakeack.attacks.as_attack`` reads
         (``"1/5"``, ``"random:0.3"``, ``"inject:0.1+random:0.3"``).
     mode : {"covariance", "state"}
         ``"covariance"`` tracks the holding time and averages :math:`\mathrm{Tr}\,P_k`;
