@@ -7,6 +7,7 @@ import concurrent.futures as cf
 import multiprocessing
 import os
 import random
+import signal
 import subprocess
 import sys
 from fractions import Fraction
@@ -403,7 +404,12 @@ def test_cli_writes_store_netcdf_and_heat_maps(tmp_path, capsys):
 
 def test_readme_slurm_example_builds_its_job_script(monkeypatch):
     """The README's SLURM example, up to submitting: it constructs the cluster and its job script."""
-    jobqueue = pytest.importorskip("dask_jobqueue")
+    # Importing dask_jobqueue replaces the SIGINT handler (its runner module): keep ours.
+    handler = signal.getsignal(signal.SIGINT)
+    try:
+        jobqueue = pytest.importorskip("dask_jobqueue")
+    finally:
+        signal.signal(signal.SIGINT, handler)
     readme = (Path(__file__).parent.parent / "README.md").read_text()
     start = readme.index("from dask_jobqueue import SLURMCluster")
     code = readme[start : readme.index("cluster.scale", start)]
