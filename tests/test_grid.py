@@ -7,6 +7,7 @@ import concurrent.futures as cf
 import multiprocessing
 import os
 import random
+import signal
 import subprocess
 import sys
 from fractions import Fraction
@@ -47,7 +48,11 @@ def study(systems):
 def same_bits(a, b):
     a, b = np.asarray(a), np.asarray(b)
     if a.dtype.kind == "f":
-        return a.shape == b.shape and b.dtype.kind == "f" and a.astype(np.float64).tobytes() == b.astype(np.float64).tobytes()
+        return (
+            a.shape == b.shape
+            and b.dtype.kind == "f"
+            and a.astype(np.float64).tobytes() == b.astype(np.float64).tobytes()
+        )
     return a.shape == b.shape and np.array_equal(a, b)
 
 
@@ -141,7 +146,9 @@ def test_results_do_not_depend_on_block_or_executor(systems, study):
     for name in study.data_vars:
         assert same_bits(ref[name].values, study[name].values), name
     for block in (1, 64):
-        assert_same_dataset(ref, fa.study_grid(systems, LAMS, RATIOS, BETAS, t_max=40, montecarlo=mc, block=block))
+        assert_same_dataset(
+            ref, fa.study_grid(systems, LAMS, RATIOS, BETAS, t_max=40, montecarlo=mc, block=block)
+        )
     with cf.ProcessPoolExecutor(2, mp_context=multiprocessing.get_context("spawn")) as pool:
         got = fa.study_grid(systems, LAMS, RATIOS, BETAS, t_max=40, montecarlo=mc, executor=pool, block=3)
     assert_same_dataset(ref, got)
@@ -158,14 +165,24 @@ def test_monte_carlo_cells_are_single_simulate_calls(systems):
     z0, mu = fa.design_online(0.5, "1/7")
     for k, beta in enumerate([Fraction(1, 5), Fraction(1)]):
         seed = cell_seed(11, "two", 0.5, Fraction(1, 7), beta)
-        res = fa.simulate(s, 0.5, fa.OnlineSchedule(z0, mu), horizon=40, runs=50, seed=seed, attack=mc_attack("periodic", beta))
+        res = fa.simulate(
+            s,
+            0.5,
+            fa.OnlineSchedule(z0, mu),
+            horizon=40,
+            runs=50,
+            seed=seed,
+            attack=mc_attack("periodic", beta),
+        )
         c = ds.sel(system="two", lam=0.5, ratio="1/7")
         assert same_bits(c["mc_j"][k], res.j) and same_bits(c["mc_stderr"][k], res.stderr)
     # The analytic value of the simulated attack: J(1, 5), and J_max for beta = 1.
     assert same_bits(c["mc_j_analytic"][0], fa.j_attack(s, 0.5, z0, 1, 5, mu))
     assert same_bits(c["mc_j_analytic"][1], fa.j_max(s, 0.5))
     # Seeds follow the coordinates, not the position: another grid around the cell keeps it.
-    wider = fa.study_grid({"x": systems["paper"], "two": s}, [0.4, 0.5], ["1/9", "1/7"], ["1/5", 1], montecarlo=mc)
+    wider = fa.study_grid(
+        {"x": systems["paper"], "two": s}, [0.4, 0.5], ["1/9", "1/7"], ["1/5", 1], montecarlo=mc
+    )
     assert same_bits(wider.sel(system="two", lam=0.5, ratio="1/7")["mc_j"], c["mc_j"])
     assert ds.attrs["seed"] == 11 and "runs=50" in ds.attrs["montecarlo"]
 
@@ -230,8 +247,14 @@ def test_random_family_monte_carlo_limitation_is_named(monkeypatch):
     if not hasattr(fa, "RandomBlocking"):
         monkeypatch.setattr(fa, "RandomBlocking", object(), raising=False)
     with pytest.raises(ValueError, match="does not simulate independent random blocking yet"):
-        fa.study_grid(fa.LinearSystem(**PAPER), [0.5], ["1/7"], [0.3], family="random",
-                      montecarlo=dict(runs=10, horizon=5))
+        fa.study_grid(
+            fa.LinearSystem(**PAPER),
+            [0.5],
+            ["1/7"],
+            [0.3],
+            family="random",
+            montecarlo=dict(runs=10, horizon=5),
+        )
 
 
 def test_store_round_trip_and_refusals(tmp_path, systems):
@@ -298,7 +321,9 @@ def test_without_the_extra_the_package_imports_and_names_it():
         "except ImportError as e:\n"
         "    print(e)\n"
     )
-    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=os.environ)
+    p = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=os.environ
+    )
     assert p.returncode == 0, p.stderr
     assert 'pip install "fakeack[grid]"' in p.stdout
 
@@ -326,7 +351,10 @@ def test_config_axes_are_exact_and_unknown_keys_are_refused():
     assert cfg.beta == [Fraction(1, 5), Fraction(2, 3)] and list(cfg.systems) == ["paper"]
     for broken, message in [
         (GRID_CONFIG.replace("t_max", "tmax"), r"\[grid\] tmax: unknown key"),
-        (GRID_CONFIG.replace("[systems.paper]", "[systems.paper]\nB = 1"), r"\[systems.paper\] B: unknown key"),
+        (
+            GRID_CONFIG.replace("[systems.paper]", "[systems.paper]\nB = 1"),
+            r"\[systems.paper\] B: unknown key",
+        ),
         (GRID_CONFIG + "\n[plot]\nx = 1\n", r"\[plot\]: unknown section"),
         (GRID_CONFIG.replace('"1/5"]\nbeta', '"1/2"]\nbeta'), r"\[grid\] ratio 1/2: no lam"),
         (GRID_CONFIG.replace("num = 3", "num = 3, step = 1"), r"\[grid.lam\] step: unknown key"),
@@ -351,9 +379,17 @@ def test_cli_writes_store_netcdf_and_heat_maps(tmp_path, capsys):
     assert rc == 0, err
     assert "3 computed now, 0 already complete" in out or "computed now" in out
     files = {p.name for p in (tmp_path / "out").iterdir()}
-    assert {"study.zarr", "study.nc", "beta_bar_paper.png", "beta_bar_paper.svg", "decision_paper.png"} <= files
+    assert {
+        "study.zarr",
+        "study.nc",
+        "beta_bar_paper.png",
+        "beta_bar_paper.svg",
+        "decision_paper.png",
+    } <= files
     nc = xr.open_dataset(tmp_path / "out" / "study.nc", engine="h5netcdf").load()
-    direct = fa.study_grid(fa.LinearSystem(**PAPER), [0.4, 0.5, 0.6], ["1/7", "1/5"], ["1/5", "2/3"], t_max=30)
+    direct = fa.study_grid(
+        fa.LinearSystem(**PAPER), [0.4, 0.5, 0.6], ["1/7", "1/5"], ["1/5", "2/3"], t_max=30
+    )
     assert same_bits(nc["j_attack"].values, direct["j_attack"].values)
     assert list(nc["decision"].values.ravel()) == list(direct["decision"].values.ravel())
     # Again without --resume: refused, exit 2; an unknown key: exit 2, naming it.
@@ -368,7 +404,12 @@ def test_cli_writes_store_netcdf_and_heat_maps(tmp_path, capsys):
 
 def test_readme_slurm_example_builds_its_job_script(monkeypatch):
     """The README's SLURM example, up to submitting: it constructs the cluster and its job script."""
-    jobqueue = pytest.importorskip("dask_jobqueue")
+    # Importing dask_jobqueue replaces the SIGINT handler (its runner module): keep ours.
+    handler = signal.getsignal(signal.SIGINT)
+    try:
+        jobqueue = pytest.importorskip("dask_jobqueue")
+    finally:
+        signal.signal(signal.SIGINT, handler)
     readme = (Path(__file__).parent.parent / "README.md").read_text()
     start = readme.index("from dask_jobqueue import SLURMCluster")
     code = readme[start : readme.index("cluster.scale", start)]

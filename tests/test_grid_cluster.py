@@ -42,7 +42,9 @@ def systems():
 
 def test_local_cluster_gives_the_same_dataset(client, systems):
     ref = fa.study_grid(systems, LAMS, RATIOS, BETAS, t_max=40, montecarlo=MC)
-    assert_same_dataset(ref, fa.study_grid(systems, LAMS, RATIOS, BETAS, t_max=40, montecarlo=MC, executor=client))
+    assert_same_dataset(
+        ref, fa.study_grid(systems, LAMS, RATIOS, BETAS, t_max=40, montecarlo=MC, executor=client)
+    )
     via_executor = client.get_executor()
     got = fa.study_grid(systems, LAMS, RATIOS, BETAS, t_max=40, montecarlo=MC, executor=via_executor, block=1)
     assert_same_dataset(ref, got)
@@ -116,7 +118,7 @@ def test_cli_interrupted_and_killed_then_resumed(tmp_path):
     lam = ", ".join(map(str, SLOW["lam"]))
     ratio = ", ".join(f'"{r}"' for r in SLOW["ratio"])
     config.write_text(
-        f"[grid]\nlam = [{lam}]\nratio = [{ratio}]\nbeta = [\"1/5\"]\nt_max = {SLOW['t_max']}\nblock = 1\n\n"
+        f'[grid]\nlam = [{lam}]\nratio = [{ratio}]\nbeta = ["1/5"]\nt_max = {SLOW["t_max"]}\nblock = 1\n\n'
         "[systems.two]\nA = [[1.1, 0.3], [-0.2, 0.8]]\nC = [[1.0, 0.5]]\nQ = [[0.5, 0.1], [0.1, 0.3]]\nR = 0.4\n"
     )
     out = tmp_path / "out"
@@ -149,4 +151,8 @@ def test_cli_interrupted_and_killed_then_resumed(tmp_path):
     nc = xr.open_dataset(out / "study.nc", engine="h5netcdf").load()
     for name in ref.data_vars:
         a, b = ref[name].values, nc[name].values
-        assert a.tobytes() == b.astype(a.dtype).tobytes() if a.dtype.kind == "f" else list(a.ravel()) == list(b.ravel())
+        assert (
+            a.tobytes() == b.astype(a.dtype).tobytes()
+            if a.dtype.kind == "f"
+            else list(a.ravel()) == list(b.ravel())
+        )

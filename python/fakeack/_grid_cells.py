@@ -129,11 +129,10 @@ def run_block(block: Block) -> dict[str, Any]:
         block.t_max,
         listed,
     )
-    for i, err in enumerate(out["error"]):
-        if err and status[i] == "ok":
-            status[i] = f"error: {err}"
-        elif status[i] == "ok" and np.isinf(out["j_max"][i]):
-            status[i] = _j_max_note(block.family)
+    ok = status == "ok"
+    for i in np.flatnonzero(ok & (np.array(out["error"], dtype=object) != "")):
+        status[i] = f"error: {out['error'][i]}"
+    status[(status == "ok") & np.isinf(out["j_max"])] = _j_max_note(block.family)
     data: dict[str, Any] = {
         "j_offline": out["j_offline"],
         "j_online": out["j_online"],

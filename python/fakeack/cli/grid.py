@@ -98,8 +98,12 @@ def run(args: argparse.Namespace) -> int:
     figures: list[Path] = []
     if not args.no_figures:
         from ..grid_figures import write_heat_maps
+        from ..plots import have_matplotlib
 
-        figures = write_heat_maps(ds, out)
+        if have_matplotlib():
+            figures = write_heat_maps(ds, out)
+        else:
+            print("note: heat maps skipped (pip install 'fakeack[plot]' for matplotlib)", file=sys.stderr)
     dims = " x ".join(f"{ds.sizes[d]} {d}" for d in ds.sizes)
     print(f"fakeack grid: {cfg.source}: {dims} in {elapsed:.1f} s")
     print(f"  blocks: {info.blocks} in all, {info.computed} computed now, {info.resumed} already complete")
