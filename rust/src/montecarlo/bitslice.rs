@@ -6,8 +6,9 @@
 //!   (j = 1..=depth; τ never exceeds the plan's bound, which is the depth);
 //! * the detector's zero count (under attack) as a thermometer with levels 1..=z0+1;
 //! * the attacker's flag counter σ in binary planes; "block" is σ in one of the mask's runs of
-//!   ones, a few bit-serial comparisons with constants. Independent blocking has no counter: a
-//!   β draw in the lanes with a flag. Forging is a γ draw in the lanes without one.
+//!   ones, a few bit-serial comparisons with constants. Independent blocking has no counter:
+//!   each lane holds a β decision drawn ahead of its next flag. Forging is a γ draw in the lanes
+//!   without a flag.
 //!
 //! Independent blocking leaves τ unbounded. Such plans (and forging plans whose bound is deep)
 //! stop the thermometer at a level L few runs reach: level L - 1 holds "τ ≥ L", and the lanes
@@ -18,8 +19,9 @@
 //! and stops once every lane that needs a draw is decided or T has no further one bits (the
 //! undecided lanes then have U ≥ T). Each lane hits iff U < T: exactly Bernoulli(T / 2^64), as in
 //! the lane kernels. Only low-power lanes draw the channel, the μ draw is made only where the
-//! zero count is exactly z0 (the one place it matters), β only where a genuine flag is sent and
-//! γ only where none is; a draw for all 256 lanes takes about
+//! zero count is exactly z0 (the one place it matters), β ahead of the flags for every lane
+//! whose decision was used, once some flag needs one, and γ only where no flag is sent; a draw
+//! for all 256 lanes takes about
 //! log2(256) + 1.3 words for a generic p, one word for p = 1/2, none when no lane needs it.
 //!
 //! Tr P_k summed over runs is Σ_j `tr[j]` n_j(k), with the histogram n_j(k) of τ read off the

@@ -69,7 +69,8 @@
 //! Each step draws, in this order, the channel (λ), the memory (μ, when 0 < μ < 1), the
 //! independent blocking (β) and the forging (γ), each only in the plans that have it: the lane
 //! kernels draw in every lane, the bit-sliced kernel only in the lanes where the draw matters
-//! (low power; a zero count of exactly z0; a genuine flag; no genuine flag).
+//! (low power; a zero count of exactly z0; no genuine flag), and the β decisions ahead of the
+//! flags they decide, many lanes at once.
 //!
 //! Bernoulli draws use 16-bit slices of 64-bit xoshiro256++ outputs (four draws per output),
 //! compared with the top 16 bits of the exact threshold T = ⌊p 2^64⌋; a tie (probability 2^-16)

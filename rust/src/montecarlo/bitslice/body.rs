@@ -10,8 +10,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::deep::DeepRuns;
 use super::words::{
-    and, andnot, equals, increment, less_than, not, or, popcount, splat, xor, LaneCounter, Rng4,
-    StreamStepper, BATCH, ONES, RUNS, W, ZERO,
+    and, andnot, any, equals, increment, less_than, not, or, popcount, splat, xor, LaneCounter,
+    Rng4, StreamStepper, BATCH, ONES, RUNS, W, ZERO,
 };
 use super::{BsBlock, BsOut, BsPlan, CANCEL_STEPS, MAX_DEPTH};
 use crate::error::{Error, Result};
@@ -139,8 +139,44 @@ fn attack<const PROTO_A: bool, const B: usize>(
     delivery
 }
 
-/// The independent attacker on this step's flags: blocks them where `blocking` (its β draw,
-/// made for the flag lanes only), with no counter. Protocol A and B give the same result by
+/// Independent blocking's β decisions, drawn ahead: each lane holds one for its next flag.
+///
+/// A decision is drawn before the flag it decides, from random bits nothing else reads, so it
+/// is exactly an independent Bernoulli(β) draw, as one made at the flag's step would be. Drawing
+/// ahead lets many lanes share a draw: a bit-serial draw takes about log2(lanes) + 1.3 words
+/// (see `Rng4::bernoulli`), so redrawing every used decision at once when some flag finds its
+/// lane without one (every other step or so on the paper's example) costs about half the words
+/// of a draw per step for the flag lanes alone.
+struct BetaPool {
+    /// Each lane's decision (1 = block its next flag), valid where `fresh`.
+    decision: W,
+    /// Lanes whose decision is drawn and not yet used.
+    fresh: W,
+}
+
+impl BetaPool {
+    /// No decision drawn yet.
+    const EMPTY: BetaPool = BetaPool {
+        decision: ZERO,
+        fresh: ZERO,
+    };
+
+    /// The decisions for this step's flags `flag` (1 = blocked), drawn with threshold `thr`.
+    #[inline(always)]
+    fn take<S: StreamStepper>(&mut self, flag: W, rng: &mut Rng4, stepper: S, thr: u64) -> W {
+        if any(andnot(flag, self.fresh)) {
+            let used = not(self.fresh);
+            let drawn = rng.bernoulli(stepper, thr, used);
+            self.decision = or(and(self.decision, self.fresh), drawn);
+            self.fresh = ONES;
+        }
+        self.fresh = andnot(self.fresh, flag);
+        and(self.decision, flag)
+    }
+}
+
+/// The independent attacker on this step's flags: blocks them where `blocking` (their β
+/// decisions, see [`BetaPool`]), with no counter. Protocol A and B give the same result by
 /// different operations.
 #[inline(always)]
 fn attack_random<const PROTO_A: bool>(flag: W, blocking: W) -> Delivery {
@@ -347,8 +383,9 @@ fn pattern_step(pattern: &[u8], pos: &mut usize) -> W {
 
 /// The kernel on thermometers of D levels (`levels[j]` holds "≥ j + 1") and B counter planes;
 /// `stepper` steps the random streams (on AVX2 registers, or portably). RANDOM blocks the
-/// genuine flags independently (a β draw for the lanes with a flag, no counter); FORGE forges a
-/// flag with a γ draw for the lanes without one. Draws per step: λ, μ, β, γ, in that order.
+/// genuine flags independently (β decisions drawn ahead, [`BetaPool`]; no counter); FORGE forges
+/// a flag with a γ draw for the lanes without one. Draws per step: λ, μ, β (when some flag
+/// needs one), γ, in that order.
 #[inline(always)]
 pub(super) fn body<
     const ONLINE: bool,
@@ -399,6 +436,7 @@ pub(super) fn body<
         (D, [false; D])
     };
     let mut deep = (deep_level > 0).then(|| DeepRuns::new(deep_level));
+    let mut beta_pool = BetaPool::EMPTY;
     for (batch_index, steps) in b.acc.chunks_mut(BATCH).enumerate() {
         if (batch_index * BATCH) % CANCEL_STEPS == 0 && cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
@@ -415,7 +453,13 @@ pub(super) fn body<
             // the lanes at or above a deep plan's top level).
             step_up(&mut therm, arrive);
             let batch = &mut tallies.level_batch;
-            let mut v = step_sum(&therm, active, b.active, &tr, batch, s, top, deep.is_some());
+            let is_deep = deep.is_some();
+            // A deep plan's level is D itself on the specialised builds: a constant there.
+            let mut v = if top == D {
+                step_sum(&therm, active, b.active, &tr, batch, s, D, is_deep)
+            } else {
+                step_sum(&therm, active, b.active, &tr, batch, s, top, is_deep)
+            };
             if let Some(deep) = deep.as_mut() {
                 let now = if top == D {
                     therm[D - 1]
@@ -438,7 +482,7 @@ pub(super) fn body<
                     *z = andnot(*z, flag);
                 }
                 let delivery = if RANDOM {
-                    let blocking = rng.bernoulli(stepper, p.beta_thr, flag);
+                    let blocking = beta_pool.take(flag, &mut rng, stepper, p.beta_thr);
                     attack_random::<PROTO_A>(flag, blocking)
                 } else {
                     let blocking = blocking(&sigma, &p.mask_runs);

@@ -17,9 +17,9 @@ pub(super) struct DeepRuns {
     /// Lanes at or above L after the previous step.
     prev: W,
     /// Each lane's τ while at or above L.
-    tau: Vec<u64>,
+    tau: Box<[u64; RUNS]>,
     /// Each lane's Σ `tr[τ]` over its steps at or above L.
-    pub(super) sum: Vec<f64>,
+    pub(super) sum: Box<[f64; RUNS]>,
 }
 
 impl DeepRuns {
@@ -28,13 +28,14 @@ impl DeepRuns {
         DeepRuns {
             level: level as u64,
             prev: [0; WORDS],
-            tau: vec![0; RUNS],
-            sum: vec![0.0; RUNS],
+            tau: Box::new([0; RUNS]),
+            sum: Box::new([0.0; RUNS]),
         }
     }
 
     /// The step's lanes at or above the level are `now`: advances their τ and sums, and returns
     /// the Σ of `tr[τ]` over those in `active`, in lane order (`None` if there are none).
+    /// `tr` must not be empty.
     #[inline(always)]
     pub(super) fn step(&mut self, now: W, active: W, tr: &[f64]) -> Option<f64> {
         let prev = self.prev;
@@ -45,33 +46,33 @@ impl DeepRuns {
         self.advance(now, prev, active, tr)
     }
 
-    /// [`DeepRuns::step`] for a step with some lane at or above the level.
+    /// [`DeepRuns::step`] for a step with some lane at or above the level (branch-free per lane:
+    /// which lanes are deep varies from step to step).
     #[inline(never)]
     fn advance(&mut self, now: W, prev: W, active: W, tr: &[f64]) -> Option<f64> {
-        let last = tr.len().saturating_sub(1);
-        let mut total = None;
+        let last = tr.len() - 1;
+        let (mut total, mut counted) = (0.0, false);
         for w in 0..WORDS {
-            let mut bits = now[w];
+            let (mut bits, old, act) = (now[w], prev[w], active[w]);
             while bits != 0 {
                 let i = bits.trailing_zeros();
                 bits &= bits - 1;
-                let l = 64 * w + i as usize;
-                let tau = if (prev[w] >> i) & 1 == 1 {
+                let l = (64 * w + i as usize) % RUNS;
+                // L on the step a lane gets there (τ grows by one per step), then one more.
+                let tau = if (old >> i) & 1 == 1 {
                     self.tau[l] + 1
                 } else {
                     self.level
                 };
                 self.tau[l] = tau;
-                let x = tr
-                    .get((tau as usize).min(last))
-                    .copied()
-                    .unwrap_or(f64::INFINITY);
+                let x = tr[(tau as usize).min(last)];
                 self.sum[l] += x;
-                if (active[w] >> i) & 1 == 1 {
-                    total = Some(total.map_or(x, |t: f64| t + x));
-                }
+                // Adding +0.0 for a padding lane leaves the (non-negative) total as it is.
+                let is_active = (act >> i) & 1 == 1;
+                total += if is_active { x } else { 0.0 };
+                counted |= is_active;
             }
         }
-        total
+        counted.then_some(total)
     }
 }

@@ -41,6 +41,8 @@ struct PlainRuns<'a> {
     hist: Vec<Vec<u64>>,
     /// Each lane's Σ tr[τ] over its steps with τ at or above a deep plan's level, in order.
     deep_sum: Vec<f64>,
+    /// Each lane's β decision for its next flag, if drawn and unused (independent blocking).
+    beta_ahead: Vec<Option<bool>>,
 }
 
 impl<'a> PlainRuns<'a> {
@@ -54,6 +56,7 @@ impl<'a> PlainRuns<'a> {
             hi: vec![true; RUNS],
             hist: vec![vec![0; case.plan.depth() + 1]; RUNS],
             deep_sum: vec![0.0; RUNS],
+            beta_ahead: vec![None; RUNS],
         }
     }
 
@@ -139,10 +142,20 @@ impl<'a> PlainRuns<'a> {
             (false, _) => p.fixed_memory,
         };
         let flag: Vec<bool> = (0..RUNS).map(|l| count[l] >= memory(l)).collect();
-        // β is drawn for the lanes with a flag, then γ for those without one.
+        // β decisions are drawn ahead: when a flag finds its lane without one, every lane
+        // without one gets one (a single draw); then γ for the lanes without a flag.
         let random = if random_block {
-            let flagged = from_lanes(|l| flag[l]);
-            self.rng.bernoulli(Portable, p.beta_thr, flagged)
+            if (0..RUNS).any(|l| flag[l] && self.beta_ahead[l].is_none()) {
+                let used = from_lanes(|l| self.beta_ahead[l].is_none());
+                let drawn = self.rng.bernoulli(Portable, p.beta_thr, used);
+                for (l, d) in self.beta_ahead.iter_mut().enumerate() {
+                    d.get_or_insert(lane(&drawn, l));
+                }
+            }
+            let blocked: Vec<bool> = (0..RUNS)
+                .map(|l| flag[l] && self.beta_ahead[l].take().unwrap())
+                .collect();
+            from_lanes(|l| blocked[l])
         } else {
             ZERO
         };
