@@ -248,7 +248,9 @@ impl Segments {
             let (mut head, mut tail, mut partial) = (0.0, 0.0, 0.0);
             // head = Σ_{σ=1..r} v_σ; tail = Σ_{k<r} (r-k) v_k; partial = Σ_{k<r} v_k.
             for r in 0..=rmax {
-                out.push(head + one_minus_u * tail - r as f64 * v[0]);
+                // r W_0 is 0 for r = 0 even when W_0 is beyond the double range (no 0 * inf).
+                let shift = if r == 0 { 0.0 } else { r as f64 * v[0] };
+                out.push(head + one_minus_u * tail - shift);
                 partial += v[r];
                 tail += partial;
                 if r < rmax {
@@ -263,7 +265,7 @@ impl Segments {
     /// J(r, t) for "block the first r of every t flag-ACKs".
     pub fn j_first_r(&self, r: usize, t: usize) -> f64 {
         let (a, b) = self.first_r_offsets(r);
-        (t as f64 * self.w[0] + a[r]) / (t as f64 * self.m[0] + b[r])
+        first_r_j(t as f64, self.w[0], a[r], self.m[0], b[r])
     }
 
     /// The numerator N(r, t) = t W_0 + a_r alone (with masses as `w`, the normaliser D).
@@ -292,6 +294,16 @@ fn scale_by_block_factor(v: &mut [f64], walk: &Walk) {
     }
 }
 
+/// J(r, t) = (t W_0 + a_r) / (t M_0 + b_r). The numerator is a sum of non-negative terms written
+/// with a subtraction (a_r holds - r W_0), so a NaN there means inf - inf: W beyond the double
+/// range, J = +inf.
+#[inline]
+pub fn first_r_j(t: f64, w0: f64, a_r: f64, m0: f64, b_r: f64) -> f64 {
+    let num = t * w0 + a_r;
+    let num = if num.is_nan() { f64::INFINITY } else { num };
+    num / (t * m0 + b_r)
+}
+
 /// Segment sums Σ_i C(k,i) μ^(k-i) (1-μ)^i Z_k(k z0 + i) of a per-τ weight `v`, where
 /// Z_0(s) = Σ_{z=0..z0} v[s+z] + (1-μ) v[s+z0+1] and Z_k(s) = Z_0(s) - v[s] for k ≥ 1.
 fn segment_sums(v: &[f64], z0: u64, mu: f64, kmax: u64) -> Vec<f64> {
@@ -299,7 +311,19 @@ fn segment_sums(v: &[f64], z0: u64, mu: f64, kmax: u64) -> Vec<f64> {
     let pre = prefix(v);
     let zsum = |s: usize, k: usize| {
         let first = if k == 0 { s } else { s + 1 };
-        pre[s + z + 1] - pre[first] + (1.0 - mu) * v[s + z + 1]
+        let tail = if mu < 1.0 {
+            (1.0 - mu) * v[s + z + 1]
+        } else {
+            0.0
+        };
+        let sum = pre[s + z + 1] - pre[first] + tail;
+        // The terms are non-negative and overflow only from some τ on (the traces grow
+        // geometrically), so inf - inf means a segment beyond the double range: +inf, not NaN.
+        if sum.is_nan() {
+            f64::INFINITY
+        } else {
+            sum
+        }
     };
     let mut out = Vec::with_capacity(kmax as usize + 1);
     if mu == 1.0 {

@@ -88,8 +88,8 @@ struct FirstR {
 impl FirstR {
     #[inline]
     fn j(&self, r: u32, t: u32) -> f64 {
-        let t = t as f64;
-        (t * self.w0 + self.a[r as usize]) / (t * self.m0 + self.b[r as usize])
+        let (a, b) = (self.a[r as usize], self.b[r as usize]);
+        crate::pattern::first_r_j(t as f64, self.w0, a, self.m0, b)
     }
 }
 
