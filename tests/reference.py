@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 
 def pbar_scipy(A, C, Q, R):
@@ -112,7 +114,7 @@ def offline_direct(tr, lam, pattern, periods=60):
     return total / len(pattern)
 
 
-def explore_mask_chain(lam, z0, mask, mu=1.0):
+def explore_mask_chain(lam, z0, mask, mu=1.0, sparse=False):
     """Breadth-first exploration of the protocol's chain for any blocking mask and memory mix mu.
 
     State (tau, zeros, sigma): holding time, zeros in the detector's memory since its last reset,
@@ -120,7 +122,7 @@ def explore_mask_chain(lam, z0, mask, mu=1.0):
     the detector flags with probability mu, with zeros = z0 + 1 always. A flag counted sigma is
     blocked iff mask[sigma % len(mask)]: a blocked flag resets the memory (the sensor stays on low
     power); a delivered one makes the next step high power (the packet arrives). Returns (states,
-    dense row-stochastic T)."""
+    row-stochastic T: dense, or scipy CSR with sparse=True)."""
     a, t = 1.0 - lam, len(mask)
 
     def succ(state):
@@ -146,8 +148,53 @@ def explore_mask_chain(lam, z0, mask, mu=1.0):
                 index[s] = len(order)
                 order.append(s)
         i += 1
+    if sparse:
+        rows, cols, vals = zip(*((k, index[d], p) for s, k in index.items() for d, p in succ(s)), strict=True)
+        T = sp.csr_array((vals, (rows, cols)), shape=(len(order), len(order)))  # duplicates add up
+        return order, T
     T = np.zeros((len(order), len(order)))
     for s, k in index.items():
         for d, p in succ(s):
             T[k, index[d]] += p
     return order, T
+
+
+def stationary_sparse(T):
+    """Stationary law of a sparse row-stochastic matrix: pin one balance equation to the
+    normalisation and solve with scipy's sparse LU."""
+    n = T.shape[0]
+    A = (T.T - sp.eye_array(n)).tolil()
+    A[0, :] = 1.0
+    b = np.zeros(n)
+    b[0] = 1.0
+    return spla.spsolve(A.tocsc(), b)
+
+
+def memory_chain_all_blocked(lam, z0, mu=1.0):
+    """Zeros in the detector's memory when every flag is blocked: from z zeros a flag goes out
+    with probability 1 (z = z0 + 1), mu (z = z0) or 0; a blocked flag resets the memory and the
+    step stays low power, so the next count is 0 after an arrival, 1 after a loss that followed a
+    flag, z + 1 after a loss without one. Returns (dense row-stochastic T, flag probability per
+    state); the all-blocked flag rate is pi @ flag."""
+    a = 1.0 - lam
+    n = z0 + 2
+    T = np.zeros((n, n))
+    flag = np.array([1.0 if z == z0 + 1 else (mu if z == z0 else 0.0) for z in range(n)])
+    for z in range(n):
+        T[z, 0] += lam
+        T[z, 1] += a * flag[z]
+        if flag[z] < 1:
+            T[z, z + 1] += a * (1 - flag[z])
+    return T, flag
+
+
+def additive_variance_rate(T, f):
+    """Asymptotic variance per step of the sum of f(X_k) along a stationary ergodic chain T:
+    sigma^2 = 2 pi(fbar Z fbar) - pi(fbar^2), fbar = f - pi f, Z = (I - T + 1 pi)^-1 (the
+    fundamental matrix; Kemeny and Snell). Returns (pi f, sigma^2)."""
+    n = T.shape[0]
+    pi = stationary_dense(T)
+    mean = float(pi @ f)
+    fbar = f - mean
+    Z = np.linalg.inv(np.eye(n) - T + np.outer(np.ones(n), pi))
+    return mean, float(2 * pi @ (fbar * (Z @ fbar)) - pi @ (fbar * fbar))
