@@ -7,9 +7,15 @@ import numpy as np
 import pytest
 from hypothesis import settings
 
-# CI is deterministic (the same examples every run); local runs explore new seeds.
+# CI is deterministic (the same examples every run, plus every corner pinned with @example);
+# local runs explore new seeds. FAKEACK_FUZZ=N multiplies every hypothesis budget by N with fresh
+# random seeds, even under CI (README, development): the long random search.
+FUZZ = max(1, int(os.environ.get("FAKEACK_FUZZ", "1")))
 settings.register_profile("ci", derandomize=True, database=None, deadline=None)
-if os.environ.get("CI"):
+settings.register_profile("fuzz", derandomize=False, deadline=None, print_blob=True)
+if FUZZ > 1:
+    settings.load_profile("fuzz")
+elif os.environ.get("CI"):
     settings.load_profile("ci")
 
 sys.path.insert(0, str(Path(__file__).parent))

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import numpy as np
 import scipy.linalg as sla
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 
 
 def pbar_scipy(A, C, Q, R):
@@ -112,19 +114,20 @@ def offline_direct(tr, lam, pattern, periods=60):
     return total / len(pattern)
 
 
-def explore_mask_chain(lam, z0, mask, mu=1.0):
+def explore_mask_chain(lam, z0, mask, mu=1.0, sparse=False):
     """The (tau, zeros, sigma) chain for a periodic blocking mask and memory mix mu (no forging):
     :func:`explore_any_chain` with the mask's 0/1 entries as blocking probabilities."""
-    return explore_any_chain(lam, z0, mu, [float(b) for b in mask], 0.0)
+    return explore_any_chain(lam, z0, mu, [float(b) for b in mask], 0.0, sparse=sparse)
 
 
-def explore_any_chain(lam, z0, mu=1.0, block=(0.0,), gamma=0.0, tau_cap=None):
+def explore_any_chain(lam, z0, mu=1.0, block=(0.0,), gamma=0.0, tau_cap=None, sparse=False):
     """The protocol's (tau, zeros, sigma) chain under blocking and forging, by breadth-first
     exploration: the flag counted sigma is blocked with probability block[sigma % len(block)]
     (0/1 for a periodic mask, beta with len(block) == 1 for independent blocking), and on every
     step without a genuine flag a flag is forged with probability gamma (the sensor then uses high
     power and the next step restarts). A step that would pass tau_cap restarts instead: the
-    mass beyond the cap must be negligible. Returns (states, dense row-stochastic T)."""
+    mass beyond the cap must be negligible. Returns (states,
+    row-stochastic T: dense, or scipy CSR with sparse=True)."""
     a, t = 1.0 - lam, len(block)
     cap = float("inf") if tau_cap is None else tau_cap
 
@@ -152,6 +155,10 @@ def explore_any_chain(lam, z0, mu=1.0, block=(0.0,), gamma=0.0, tau_cap=None):
                 index[s] = len(order)
                 order.append(s)
         i += 1
+    if sparse:
+        rows, cols, vals = zip(*((k, index[d], p) for s, k in index.items() for d, p in succ(s)), strict=True)
+        T = sp.csr_array((vals, (rows, cols)), shape=(len(order), len(order)))  # duplicates add up
+        return order, T
     T = np.zeros((len(order), len(order)))
     for s, k in index.items():
         for d, p in succ(s):
@@ -168,3 +175,44 @@ def stationary_power(T, iterations=2000):
         pi = pi @ T
         pi /= pi.sum()
     return pi
+
+
+def stationary_sparse(T):
+    """Stationary law of a sparse row-stochastic matrix: pin one balance equation to the
+    normalisation and solve with scipy's sparse LU."""
+    n = T.shape[0]
+    A = (T.T - sp.eye_array(n)).tolil()
+    A[0, :] = 1.0
+    b = np.zeros(n)
+    b[0] = 1.0
+    return spla.spsolve(A.tocsc(), b)
+
+
+def memory_chain_all_blocked(lam, z0, mu=1.0):
+    """Zeros in the detector's memory when every flag is blocked: from z zeros a flag goes out
+    with probability 1 (z = z0 + 1), mu (z = z0) or 0; a blocked flag resets the memory and the
+    step stays low power, so the next count is 0 after an arrival, 1 after a loss that followed a
+    flag, z + 1 after a loss without one. Returns (dense row-stochastic T, flag probability per
+    state); the all-blocked flag rate is pi @ flag."""
+    a = 1.0 - lam
+    n = z0 + 2
+    T = np.zeros((n, n))
+    flag = np.array([1.0 if z == z0 + 1 else (mu if z == z0 else 0.0) for z in range(n)])
+    for z in range(n):
+        T[z, 0] += lam
+        T[z, 1] += a * flag[z]
+        if flag[z] < 1:
+            T[z, z + 1] += a * (1 - flag[z])
+    return T, flag
+
+
+def additive_variance_rate(T, f):
+    """Asymptotic variance per step of the sum of f(X_k) along a stationary ergodic chain T:
+    sigma^2 = 2 pi(fbar Z fbar) - pi(fbar^2), fbar = f - pi f, Z = (I - T + 1 pi)^-1 (the
+    fundamental matrix; Kemeny and Snell). Returns (pi f, sigma^2)."""
+    n = T.shape[0]
+    pi = stationary_dense(T)
+    mean = float(pi @ f)
+    fbar = f - mean
+    Z = np.linalg.inv(np.eye(n) - T + np.outer(np.ones(n), pi))
+    return mean, float(2 * pi @ (fbar * (Z @ fbar)) - pi @ (fbar * fbar))

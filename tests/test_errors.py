@@ -1,9 +1,14 @@
 """Every error of the compiled core reaches Python as the exception its kind calls for."""
 
+import math
+
 import numpy as np
 import pytest
+import scipy.linalg as sla
+from numpy.testing import assert_allclose
 
 import fakeack as fa
+from conftest import random_system
 from fakeack import _fakeack
 
 
@@ -64,3 +69,117 @@ def test_offline_cost_beyond_the_double_range_is_inf_not_nan():
     assert fa.j_offline(s, 0.25, Fraction(1, 16384)) == math.inf
     small = [fa.j_offline(s, 0.25, Fraction(1, q)) for q in (64, 1024, 4096)]
     assert all(math.isfinite(x) for x in small) and small == sorted(small)
+
+
+# ---------------------------------------------------------------- solver limits and attributes
+
+
+def _closed_loop_radius(A, C, Q, R):
+    """rho(A (I - K C)) at scipy's stabilising prior P: the doubling's contraction."""
+    A, C, Q, R = (np.atleast_2d(np.asarray(x, dtype=float)) for x in (A, C, Q, R))
+    P = sla.solve_discrete_are(A.T, C.T, Q, R)
+    K = P @ C.T @ np.linalg.inv(C @ P @ C.T + R)
+    return max(abs(np.linalg.eigvals(A @ (np.eye(A.shape[0]) - K @ C))))
+
+
+SOLVER_CASES = [
+    ((1.2, 0.7, 0.8, 0.8), "paper"),
+    ((1.0, 0.1, 1.0, 1.0), "slow"),  # closed loop 0.909: the doubling needs 9 steps
+    ((1.0, 0.001, 1.0, 1.0), "slower"),  # closed loop 0.999: 16 steps
+    ((np.array([[1.1, 0.3], [0.0, 0.7]]), [[1.0, 0.5]], np.eye(2) * 0.5, 0.3), "n=2"),
+]
+
+
+@pytest.mark.parametrize("args, name", SOLVER_CASES)
+def test_iterations_and_max_iter(args, name):
+    """LinearSystem.iterations: the doubling squares the closed-loop contraction rho each step,
+    so after k steps the change is about rho^(2^k): k = ceil(log2(log tol / log rho)) within
+    one. max_iter = k reproduces P̄; max_iter = k - 1 raises ConvergenceError naming k - 1.
+
+    Kills: an off-by-one in the reported count, max_iter not honoured (one step more or less),
+    the convergence test on the absolute instead of the relative change, a wrong tolerance."""
+    rho = _closed_loop_radius(*args)
+    for tol in (1e-2, 1e-8, 1e-14):
+        s = fa.LinearSystem(*args, tol=tol)
+        k_pred = math.ceil(math.log2(math.log(tol) / math.log(rho)))
+        assert abs(s.iterations - k_pred) <= 1, (name, tol, s.iterations, k_pred)
+    s = fa.LinearSystem(*args)
+    k = s.iterations
+    assert_allclose(fa.LinearSystem(*args, max_iter=k).pbar, s.pbar, rtol=0, atol=0)
+    with pytest.raises(fa.ConvergenceError, match=rf"did not converge after {k - 1} iterations"):
+        fa.LinearSystem(*args, max_iter=k - 1)
+
+
+def test_tolerance_limits():
+    """A looser tolerance never needs more steps; tol and max_iter outside their domain are
+    refused naming the argument; a tolerance below what doubles can resolve still converges when
+    the contraction underflows to zero (A_k = 0), rather than running to max_iter."""
+    its = [fa.LinearSystem(1.0, 0.01, 1.0, 1.0, tol=t).iterations for t in (1e-1, 1e-4, 1e-8, 1e-12)]
+    assert its == sorted(its) and its[0] < its[-1]
+    assert fa.LinearSystem(1.2, 0.7, 0.8, 0.8, tol=1e-300).iterations < 12
+    for bad in (0.0, -1e-3, float("nan"), float("inf")):
+        with pytest.raises(ValueError, match="tol"):
+            fa.LinearSystem(1.2, 0.7, 0.8, 0.8, tol=bad)
+    with pytest.raises(ValueError, match="max_iter"):
+        fa.LinearSystem(1.2, 0.7, 0.8, 0.8, max_iter=0)
+    err = pytest.raises(fa.ConvergenceError, fa.LinearSystem, 1.0, 0.001, 1.0, 1.0, max_iter=3)
+    assert isinstance(err.value, ValueError) and "after 3 iterations" in str(err.value)
+
+
+@pytest.mark.parametrize("A, rho", [
+    (1.2, 1.2),
+    (-0.9, 0.9),
+    (np.array([[0.0, -1.1], [1.1, 0.0]]), 1.1),  # complex pair +-1.1i
+    (np.array([[0.5, 1.0], [0.0, 0.5]]), 0.5),  # Jordan block
+    (np.array([[0.0, 1.0], [0.0, 0.0]]), 0.0),  # nilpotent
+    (np.diag([0.3, -1.25, 1.2]), 1.25),
+])
+def test_spectral_radius_closed_forms(A, rho):
+    """Kills: the largest real part (or eigenvalue) instead of the largest modulus."""
+    n = np.atleast_2d(A).shape[0]
+    s = fa.LinearSystem(A, np.eye(n), np.eye(n), np.eye(n))
+    assert s.spectral_radius == pytest.approx(rho, abs=1e-12)
+
+
+def test_spectral_radius_random_against_numpy():
+    rng = np.random.default_rng(7)
+    for n in (2, 5, 30):
+        A, C, Q, R = random_system(rng, n)
+        s = fa.LinearSystem(A, C, Q, R)
+        assert s.spectral_radius == pytest.approx(max(abs(np.linalg.eigvals(A))), rel=1e-10)
+        # The stability test of J_max (Model note 5) uses it: inf exactly past a rho^2 = 1.
+        lam_edge = 1 - 1 / s.spectral_radius**2
+        if 0.01 < lam_edge < 0.99:
+            assert fa.j_max(s, lam_edge * 0.99) == math.inf
+            assert math.isfinite(fa.j_max(s, min(lam_edge * 1.01 + 1e-3, 0.999)))
+
+
+def _states_with_count(target):
+    """(z0, r, t) with num_states = r (r + 1) z0 / 2 + t (z0 + 1) == target exactly."""
+    for z0 in (1, 2, 3):
+        for r in range(1000, 1100):
+            rest = target - r * (r + 1) * z0 // 2
+            if (r * (r + 1) * z0) % 2 == 0 and rest % (z0 + 1) == 0 and rest // (z0 + 1) > r:
+                return z0, r, rest // (z0 + 1)
+    raise AssertionError(target)
+
+
+def test_size_limits():
+    """MAX_BUILD_STATES (2e7, the README's limit) for built chains, MAX_VECTOR_STATES (1e8) for
+    stationary vectors: one state over the limit is refused before allocating, with the
+    requested count and the limit in the message; the structured cost needs neither.
+
+    Kills: a limit other than the documented one, the check after the allocation, the message
+    without the numbers."""
+    assert fa.MAX_BUILD_STATES == 2 * 10**7 and fa.MAX_VECTOR_STATES == 10**8
+    z0, r, t = _states_with_count(fa.MAX_BUILD_STATES + 1)
+    assert fa.num_states(z0, r, t) == fa.MAX_BUILD_STATES + 1
+    with pytest.raises(ValueError, match=rf"{fa.MAX_BUILD_STATES + 1}.*{fa.MAX_BUILD_STATES}.*refused before allocating"):
+        fa.attack_chain(0.5, z0, r, t)
+    with pytest.raises(ValueError, match="refused before allocating"):
+        fa.stationary_distribution(0.5, z0, r, t, method="gth")  # GTH builds the chain
+    z0, r, t = _states_with_count(fa.MAX_VECTOR_STATES + 1)
+    with pytest.raises(ValueError, match=rf"{fa.MAX_VECTOR_STATES + 1}.*{fa.MAX_VECTOR_STATES}.*refused before allocating"):
+        fa.stationary_distribution(0.5, z0, r, t)
+    paper = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+    assert math.isfinite(fa.j_attack(paper, 0.5, z0, r, t))  # O(r z0): no vector needed

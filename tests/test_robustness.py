@@ -11,9 +11,9 @@ from numpy.testing import assert_allclose
 
 import fakeack as fa
 import reference as ref
-from conftest import random_system
+from conftest import FUZZ, random_system
 
-FAST = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+FAST = settings(max_examples=40 * FUZZ, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 # ---------------------------------------------------------------- properties (hypothesis)
 
@@ -217,7 +217,7 @@ CALLS = {
 
 
 @pytest.mark.parametrize("name", sorted(CALLS))
-@settings(max_examples=150, deadline=None,
+@settings(max_examples=150 * FUZZ, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(data=st.data())
 def test_fuzz_only_documented_errors(paper, name, data):

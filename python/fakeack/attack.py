@@ -178,7 +178,9 @@ def j_attack(
     Returns
     -------
     float
-        The attacked cost; ``inf`` only if a weighted trace overflows.
+        The attacked cost, always finite in exact arithmetic (a finite r bounds the holding
+        time); ``inf`` (never NaN) when it lies beyond the double range, as long blocked runs
+        reach where :math:`(1-\lambda)\rho(A)^2 \ge 1`.
 
     Examples
     --------

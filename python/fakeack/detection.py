@@ -60,6 +60,7 @@ def flag_interval_moments(lam: Any, z0: Any, mu: Any = 1.0) -> tuple[float, floa
     Returns
     -------
     (mean, variance) : tuple of float
+        ``inf`` where a moment exceeds the double range (memories of hundreds of steps).
     """
     lam, z0, mu = _online(lam, z0, mu)
     if z0 > 10_000:
@@ -74,11 +75,18 @@ def flag_interval_moments(lam: Any, z0: Any, mu: Any = 1.0) -> tuple[float, floa
         Q[z, 0] += lam
         if z + 1 < n:
             Q[z, z + 1] += a * (1.0 - flag[z + 1])
-    N = np.linalg.inv(np.eye(n) - Q)
-    t1 = N @ np.ones(n)
-    t2 = (2 * N - np.eye(n)) @ t1
+    # Long memories make the moments astronomically large (the mean grows like a^-z0): what
+    # overflows is reported as inf, never NaN or OverflowError.
+    with np.errstate(over="ignore", invalid="ignore"):
+        N = np.linalg.inv(np.eye(n) - Q)
+        t1 = N @ np.ones(n)
+        t2 = (2 * N - np.eye(n)) @ t1
     mean_t, second = float(t1[0]), float(t2[0])
-    return 1.0 + mean_t, max(second - mean_t**2, 0.0)
+    if not math.isfinite(mean_t):
+        return math.inf, math.inf
+    if not math.isfinite(second):
+        return 1.0 + mean_t, math.inf
+    return 1.0 + mean_t, max(second - mean_t * mean_t, 0.0)
 
 
 class FlagRates(NamedTuple):
@@ -188,11 +196,34 @@ def estimate_beta(delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0
     if d > n:
         raise ValueError(f"delivered must not exceed n_steps = {n}, got {d}")
     f_on, f_blk = _regime_rates(lam, z0, mu)
+    if not f_on > 0.0:
+        raise ValueError(
+            f"z0: flag-ACKs are too rare to estimate beta (attack-free rate {f_on:.3g} per step "
+            f"at lam={lam}, z0={z0})"
+        )
     rho = d / n
     if rho >= f_on:  # at least the attack-free rate (the formula's denominator can vanish here)
         return 0.0
-    beta = (1.0 - rho / f_on) / (1.0 + rho / f_blk - rho / f_on)
+    if rho == 0.0:
+        return 1.0
+    # The inversion above, multiplied through by f_blk/f_on = g: no division by a rate that
+    # underflows, and no 1 + x - x cancellation when the two rates nearly agree (g -> 1 gives
+    # 1 - rho/f_on, the value for equal rates).
+    g = f_blk / f_on
+    beta = g * (f_on - rho) / (f_blk + rho * (1.0 - g))
     return float(min(max(beta, 0.0), 1.0))
+
+
+def _count_law(n: int, lam: float, z0: int, mu: float) -> tuple[float, float]:
+    """Mean n/m and standard deviation sqrt(n v / m^3) of the attack-free flag count in n steps
+    (renewal CLT); ValueError when the interval moments exceed the double range."""
+    m, v = flag_interval_moments(lam, z0, mu)
+    if not (math.isfinite(m) and math.isfinite(v)):
+        raise ValueError(
+            f"z0: flag-ACKs are too rare to test (interval moments beyond the double range at "
+            f"lam={lam}, z0={z0})"
+        )
+    return n / m, math.sqrt(n / m) * math.sqrt(v) / m  # m**3 alone may overflow
 
 
 @dataclass(frozen=True)
@@ -324,13 +355,12 @@ def detection_rates(
     runs = as_int("runs", runs, minimum=2)
     alpha = as_probability("alpha", alpha)
     seed = as_int("seed", seed, minimum=0, maximum=2**63)
+    expected, sd_n = _count_law(n, lam, z0, mu)
     sched = OnlineSchedule(z0, mu)
     counts = {}
     for name, a, sd in (("clean", None, seed), ("attacked", att, seed + 1)):
         res = simulate(_any_system(), lam, sched, n, runs, seed=sd, attack=a, record_runs=True)
         counts[name] = res.delivered_per_run
-    m, v = flag_interval_moments(lam, z0, mu)
-    expected, sd_n = n / m, math.sqrt(n * v / m**3)
     z_crit = float(ndtri(alpha))
     flagged = {k: float(np.mean((c - expected) / sd_n < z_crit)) for k, c in counts.items()}
     betas = np.array([estimate_beta(int(c), n, lam, z0, mu) for c in counts["attacked"]])

@@ -165,6 +165,11 @@ def expected_trace_curve(
     Returns
     -------
     TraceCurve
+        Entries are ``inf`` (never NaN) past the double range. The curve weights the plain traces
+        :math:`\mathrm{Tr}\,h^\tau(\bar P)` by probabilities, so where
+        :math:`(1-\lambda)\rho(A)^2 \ge 1` an entry is ``inf`` as soon as a reachable holding time
+        passes the overflow of its trace (τ ≈ 1950 for the paper's system), even where
+        E[Tr P_k] itself would still fit in a double.
     """
     core = _core(system)
     lam = as_probability("lam", lam)
@@ -178,7 +183,9 @@ def expected_trace_curve(
             raise ValueError("attack blocks every flag-ACK: the state space is unbounded")
         trace = core.curve_online(lam, sched.z0, sched.mu, core_attack(att), horizon)
     k = np.arange(1, horizon + 1)
-    return TraceCurve(k, trace, np.cumsum(trace) / k)
+    with np.errstate(over="ignore"):  # a running sum past the double range is inf, as documented
+        j_k = np.cumsum(trace) / k
+    return TraceCurve(k, trace, j_k)
 
 
 @dataclass(frozen=True)

@@ -111,7 +111,11 @@ def j_offline(system: Any, lam: Any, ratio: Any) -> float:
     -------
     float
         :math:`\lim \frac1T\sum_{k\le T}\mathrm{Tr}\,\mathbb E[P_k]` under
-        :func:`offline_schedule`.
+        :func:`offline_schedule`. ``math.inf`` (never NaN) when this finite value lies beyond the
+        double range (about 1.8e308): an IEEE overflow, as numpy gives, which a long period
+        reaches where :math:`(1-\lambda)\rho(A)^2 \ge 1` (e.g. the paper's system at
+        ``lam = 0.25``, ``ratio = 1/16384``). :func:`j_max`'s ``inf`` means something else: that
+        cost diverges.
     """
     core = _core(system)
     lam = as_probability("lam", lam)
@@ -147,6 +151,13 @@ def j_online(system: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
     mu : float, optional
         Probability :math:`\mu \in [0, 1]` that the detector uses the :math:`z_0`-bit memory at a
         step (:math:`z_0+1` bits otherwise). Default 1 (fixed length).
+
+    Returns
+    -------
+    float
+        ``math.inf`` (never NaN) when this finite cost lies beyond the double range (a memory of
+        thousands of steps where :math:`(1-\lambda)\rho(A)^2 \ge 1`); unlike :func:`j_max`'s
+        ``inf``, not a divergence.
 
     References
     ----------
@@ -302,8 +313,9 @@ def j_max(system: Any, lam: Any) -> float:
     Returns
     -------
     float
-        ``math.inf`` when :math:`(1-\lambda)\rho(A)^2 \ge 1` (Model note 5: the printed condition
-        :math:`(1-\lambda)\rho(A) < 1` is wrong).
+        ``math.inf`` when :math:`(1-\lambda)\rho(A)^2 \ge 1`: here ``inf`` means the series
+        diverges (Model note 5: the printed condition :math:`(1-\lambda)\rho(A) < 1` is wrong),
+        whereas the other costs return ``inf`` only for a finite value beyond the double range.
     """
     core = _core(system)
     lam = as_probability("lam", lam)

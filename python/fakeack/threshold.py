@@ -114,7 +114,7 @@ class BetaSweep:
     beta: np.ndarray
     """r / t."""
     j_attack: np.ndarray
-    """Attacked cost at each fraction."""
+    """Attacked cost at each fraction (``inf``, never NaN, where it exceeds the double range)."""
     j_offline: float
     """Cost of the optimal offline schedule at the same energy."""
     j_online: float

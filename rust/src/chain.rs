@@ -202,6 +202,19 @@ impl AttackChain {
 mod tests {
     use super::*;
 
+    /// The limit is inclusive: exactly MAX_BUILD_STATES states may be built, one more is refused
+    /// (checked without allocating; kills `>` → `>=` in check_buildable).
+    #[test]
+    fn build_limit_is_inclusive() {
+        let at = AttackChain::new(0.5, 1, 0, 10_000_000).unwrap(); // 2 t states
+        assert_eq!(at.num_states(), MAX_BUILD_STATES);
+        assert!(at.check_buildable().is_ok());
+        let over = AttackChain::new(0.5, 2, 0, 6_666_667).unwrap(); // 3 t states
+        assert_eq!(over.num_states(), MAX_BUILD_STATES + 1);
+        let e = over.check_buildable().unwrap_err().to_string();
+        assert!(e.contains("20000001") && e.contains("20000000"), "{e}");
+    }
+
     #[test]
     fn state_count_formula() {
         for z0 in 1..5 {

@@ -122,7 +122,8 @@ fn block_cost(w: &[f64], lam: f64, len: u64) -> f64 {
 }
 
 /// J of the optimal offline schedule (Proposition after Theorem 3.1, with m and n as corrected).
-/// `w` must hold at least s0 + 2 weighted traces.
+/// `w` must hold at least s0 + 2 weighted traces. `+inf` (never NaN) when the cost exceeds the
+/// double range, which a long period reaches where (1-λ) ρ(A)² >= 1.
 pub fn j_offline(w: &[f64], lam: f64, ratio: Ratio) -> Result<f64> {
     check_lam(lam)?;
     let OfflineBlocks { s0, long, short } = ratio.offline_blocks();
@@ -262,6 +263,25 @@ mod tests {
                 "{p}/{q}: {closed} vs {direct}"
             );
         }
+    }
+
+    /// The silent NaN: with m = 0 long blocks (p/q = 1/q), 0 · block_cost was NaN when
+    /// that unused block's cost overflowed. A finite J stays finite, an overflowing one is +inf.
+    #[test]
+    fn j_offline_is_inf_or_finite_never_nan() {
+        let lam = 0.25;
+        let q = 16u64; // s0 = 15: one short block of length 16, no long block (length 17)
+        let mut w = vec![1.0; 17];
+        w[16] = f64::INFINITY; // only the (absent) long block reaches τ = 16
+        let j = j_offline(&w, lam, ratio(1, q)).unwrap();
+        let direct: f64 = (0..16).map(|i| 1.0 + lam * (15 - i) as f64).sum::<f64>() / 16.0;
+        assert!((j - direct).abs() < 1e-15 * direct, "{j} vs {direct}");
+        w[15] = f64::INFINITY; // now the short block overflows
+        assert_eq!(j_offline(&w, lam, ratio(1, q)).unwrap(), f64::INFINITY);
+        // and with both kinds of block present (3/8: two long blocks of 3, one short of 2)
+        let mut w = vec![1.0; 3];
+        w[2] = f64::INFINITY;
+        assert_eq!(j_offline(&w, lam, ratio(3, 8)).unwrap(), f64::INFINITY);
     }
 
     #[test]

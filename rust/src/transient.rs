@@ -57,7 +57,13 @@ pub fn offline(tr: &[f64], lam: f64, pattern: &[u8], horizon: usize) -> Result<V
             }
             law[0] = lam * total;
         }
-        let mut e: f64 = law.iter().zip(tr).map(|(p, t)| p * t).sum();
+        // Holding times not yet reached have probability 0 and may have an infinite trace.
+        let mut e: f64 = law
+            .iter()
+            .zip(tr)
+            .filter(|(p, _)| **p > 0.0)
+            .map(|(p, t)| p * t)
+            .sum();
         if over > 0.0 {
             e = f64::INFINITY;
         }
@@ -129,6 +135,20 @@ mod tests {
         // J_on = λ/(1-a^3) (tr0 + a tr1 + a² tr2).
         let jon = 0.5 / (1.0 - 0.125) * (tr[0] + 0.5 * tr[1] + 0.25 * tr[2]);
         assert!((c[199] - jon).abs() < 1e-12);
+    }
+
+    /// Holding times not yet reached carry probability 0: an infinite trace there must not turn
+    /// E Tr P_k into 0 · inf = NaN (a long offline period past the double range).
+    #[test]
+    fn unreached_infinite_traces_do_not_poison_the_curve() {
+        let mut tr: Vec<f64> = (0..10).map(|i| 1.0 + i as f64).collect();
+        tr[9] = f64::INFINITY;
+        let pattern = [1, 0, 0, 0, 0, 0, 0, 0, 0, 0];
+        let c = offline(&tr, 0.5, &pattern, 10).unwrap();
+        assert_eq!(c[0], 1.0);
+        assert!((c[1] - (0.5 * 1.0 + 0.5 * 2.0)).abs() < 1e-15);
+        assert!(c[..9].iter().all(|x| x.is_finite()));
+        assert_eq!(c[9], f64::INFINITY); // reached with probability 2^-9
     }
 
     #[test]
