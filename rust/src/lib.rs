@@ -52,6 +52,7 @@ pub mod analysis;
 pub mod attack;
 pub mod chain;
 pub mod error;
+pub mod game_mc;
 pub mod general;
 mod linalg;
 pub mod montecarlo;

@@ -16,6 +16,7 @@ use crate::error::Error;
 use crate::{Attack, OnlineDesign};
 
 mod chains;
+mod game;
 mod simulate;
 mod system;
 
@@ -111,6 +112,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(chains::stationary_structured, m)?)?;
     m.add_function(wrap_pyfunction!(chains::general_attack_chain, m)?)?;
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(game::simulate_game, m)?)?;
     m.add_function(wrap_pyfunction!(chains::stationary_gth, m)?)?;
     m.add_function(wrap_pyfunction!(chains::balance_residual, m)?)?;
     m.add("MAX_BUILD_STATES", crate::chain::MAX_BUILD_STATES as u64)?;
