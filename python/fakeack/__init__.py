@@ -34,6 +34,18 @@ from .detectors import (
     detection_probability,
     interval_test,
 )
+from .frontier import StealthyFrontier, plot_frontiers, stealthy_frontier
+from .game import (
+    GameSimulation,
+    GameSolution,
+    Payoff,
+    SensorPolicy,
+    Stackelberg,
+    game_payoff,
+    plot_game,
+    simulate_game,
+    solve_game,
+)
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
 from .montecarlo import (
     AttackPattern,
@@ -107,6 +119,18 @@ __all__ = [
     "flag_count_moments",
     "flag_interval_law",
     "interval_test",
+    "GameSimulation",
+    "GameSolution",
+    "Payoff",
+    "SensorPolicy",
+    "Stackelberg",
+    "StealthyFrontier",
+    "game_payoff",
+    "plot_frontiers",
+    "plot_game",
+    "simulate_game",
+    "solve_game",
+    "stealthy_frontier",
     "AttackPattern",
     "OfflineSchedule",
     "OnlineSchedule",
