@@ -232,6 +232,16 @@ def test_solution_meets_the_minimax_conditions(paper):
     assert A[5, 3] == pytest.approx(fa.game_payoff(paper, LAM, RATIO, pol, att, 1000).j, rel=1e-12)
 
 
+def test_value_is_offline_or_the_strongest_attack(paper):
+    # Each online policy's payoff averages J_att and J_off, so "never" is best against attacks
+    # cheaper than offline and "offline" against the others: value = min(J_off, max J_att).
+    for attacks in (ATTACKS, ATTACKS + [fa.PeriodicBlocking(2, 3)]):
+        sol = fa.solve_game(paper, LAM, RATIO, 1000, [0.01], [1, 4], attacks)
+        j_att = [fa.j_attack(paper, LAM, 2, attack=a) if a else fa.j_online(paper, LAM, 2) for a in attacks]
+        assert sol.value == pytest.approx(min(sol.j_offline, max(j_att)), rel=1e-9)
+        assert sol.stackelberg.payoff == pytest.approx(sol.value, rel=1e-9)
+
+
 def test_a_game_without_strong_attacks_stays_online(paper):
     # With attacks weaker than the offline schedule's cost, the sensor never needs to go offline.
     sol = fa.solve_game(paper, LAM, RATIO, 1000, [0.01], [2], [None, fa.PeriodicBlocking(1, 5)],

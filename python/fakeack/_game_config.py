@@ -36,13 +36,13 @@ GAME_SECTION = Section(
      "horizon", "seed")
 )
 
-#: The attacker's choices of the default game: none, the paper's attack at small budgets, a
-#: memoryless jammer, a forger, and rate matching at the same budgets.
+#: The attacker's choices of the default game: none, the paper's attack, a memoryless jammer, a
+#: forger, and rate matching (up to a budget of 0.8, where it costs more than the offline schedule).
 DEFAULT_ATTACKS = (
     "none", "1/10", "1/5", "1/4", "1/3", "2/5", "2/3",
     "random:0.1", "random:0.2", "random:0.3", "random:0.5",
     "inject:0.02", "inject:0.05",
-    "match:0.1", "match:0.2", "match:0.3", "match:0.4", "match:0.5",
+    "match:0.1", "match:0.2", "match:0.3", "match:0.4", "match:0.5", "match:0.8",
 )
 
 

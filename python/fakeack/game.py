@@ -41,7 +41,7 @@ import numpy as np
 from . import _fakeack
 from ._validate import as_int, as_probability, as_ratio, as_real
 from .attack import j_attack
-from .attacks import PeriodicBlocking, as_attack, core_attack
+from .attacks import FlagInjection, PeriodicBlocking, as_attack, core_attack
 from .detectors import (
     _count_alarm,
     _count_moments,
@@ -379,8 +379,10 @@ class GameSolution:
                 if strat[i] > 1e-9:
                     lines.append(f"  {strat[i]:.4f}  {_name(items[i])}")
         st = self.stackelberg
+        row = self.payoff[self.policies.index(st.policy)]
+        answer = "any attack (all cost the same)" if np.ptp(row) == 0 else _name(st.attack)
         lines.append(f"Stackelberg (sensor commits to a pure policy): {st.policy}; the attacker "
-                     f"answers {_name(st.attack)}; J = {st.payoff:.6f}")
+                     f"answers {answer}; J = {st.payoff:.6f}")
         return "\n".join(lines)
 
 
@@ -690,32 +692,43 @@ def plot_game(solution: GameSolution, ax: Any = None, max_rows: int = 40, max_co
         cols = sorted(keep | set(rest[: max(0, max_cols - len(keep))]))
     sub = A[np.ix_(rows, cols)]
     if ax is None:
-        fig, ax = plt.subplots(figsize=(min(4 + 0.35 * len(cols), 18), min(3 + 0.3 * len(rows), 14)))
+        fig, ax = plt.subplots(figsize=(min(7 + 0.35 * len(cols), 20), min(3 + 0.3 * len(rows), 14)),
+                               layout="constrained")
     else:
         fig = ax.figure
     im = ax.imshow(sub, aspect="auto", cmap="viridis")
     fig.colorbar(im, ax=ax, label="J (long-run mean Tr P)")
-    ax.set_yticks(range(len(rows)), [str(solution.policies[i]) for i in rows], fontsize=6)
-    ax.set_xticks(range(len(cols)), [_short(solution.attacks[j]) for j in cols], fontsize=6, rotation=90)
-    for r, i in enumerate(rows):
-        if solution.sensor_strategy[i] > 1e-9:
-            ax.annotate(f"{solution.sensor_strategy[i]:.2f}", (-0.5, r), xytext=(-2, 0),
-                        textcoords="offset points", ha="right", va="center", fontsize=6, color="C3")
+
+    def row_label(i: int) -> str:
+        p = solution.sensor_strategy[i]
+        return (f"[{p:.2f}] " if p > 1e-9 else "") + str(solution.policies[i])
+
+    def col_label(j: int) -> str:
+        p = solution.attacker_strategy[j]
+        return _short(solution.attacks[j]) + (f" [{p:.2f}]" if p > 1e-9 else "")
+
+    ax.set_yticks(range(len(rows)), [row_label(i) for i in rows], fontsize=6)
+    ax.set_xticks(range(len(cols)), [col_label(j) for j in cols], fontsize=6, rotation=90)
     for c, j in enumerate(cols):
         if solution.attacker_strategy[j] > 1e-9:
             ax.add_patch(plt.Rectangle((c - 0.5, -0.5), 1, len(rows), fill=False, ec="C3", lw=1.2))
     for r, i in enumerate(rows):
         if solution.sensor_strategy[i] > 1e-9:
             ax.add_patch(plt.Rectangle((-0.5, r - 0.5), len(cols), 1, fill=False, ec="C3", lw=1.2))
+        best = solution.best_attack[i]
+        if best in cols and np.ptp(A[i]) > 0:
+            ax.plot([cols.index(best)], [r], "o", ms=3, color="white", mec="k", mew=0.5)
     if st_row in rows and st_col in cols:
         ax.plot([cols.index(st_col)], [rows.index(st_row)], marker="*", ms=14, color="white", mec="k")
-    ax.set_title(f"Payoff J per (sensor policy, attack); value {solution.value:.4f}. Red frames: the "
-                 "equilibrium's supports; star: Stackelberg", fontsize=9)
-    fig.tight_layout()
+    ax.set_title(f"Payoff J per (sensor policy, attack); value {solution.value:.4f}. Red frames and [p]: "
+                 "the optimal mixed strategies; dots: the attacker's best response to each policy; "
+                 "star: Stackelberg", fontsize=8)
     return fig
 
 
 def _short(attack: Any) -> str:
     if attack is None:
         return "none"
+    if isinstance(attack, FlagInjection) and attack.block is not None:
+        return f"inject:{attack.gamma:.3g}+{attack.block.label}"
     return getattr(attack, "label", str(attack))

@@ -80,11 +80,13 @@ def _text(cfg: Any, game: GameConfig, sol: Any, frontiers: list, checks: list, f
         "",
         sol.summary(top=6),
         "",
-        "best responses to the special policies:",
+        "the attacker's best response to each policy (J; probability d that a window triggers the "
+        "fall-back):",
     ]
-    for i in (0, 1):
+    for i, pol in enumerate(sol.policies):
         j = sol.best_attack[i]
-        lines.append(f"  {sol.policies[i]}: {_name(sol.attacks[j])} (J = {sol.payoff[i, j]:.6f})")
+        lines.append(f"  {str(pol):62s} {_name(sol.attacks[j])[:58]:58s} J = {sol.payoff[i, j]:.4f}, "
+                     f"d = {sol.detection[i, j]:.3f}")
     lines += ["", f"stealthy frontiers (detection per window <= {game.max_detection:g}, "
               f"alpha = {min(game.alphas):g}):"]
     for f in frontiers:
