@@ -22,6 +22,7 @@ __all__ = [
     "num_states",
     "offline_schedule",
     "simulate",
+    "simulate_game",
     "stationary_gth",
     "stationary_structured",
 ]
