@@ -29,7 +29,10 @@ def detection() -> None:
             p = fa.detection_probability(LAM, Z0, a, n, alpha, test)
             r = fa.detection_rates(LAM, Z0, a or fa.PeriodicBlocking(0, 1), n, runs, alpha=alpha, seed=7,
                                    test=test, alternative="two-sided", burn_in=n)
-            sim, se = (r.false_alarm, r.false_alarm_stderr) if a is None else (r.detection, r.detection_stderr)
+            if a is None:
+                sim, se = r.false_alarm, r.false_alarm_stderr
+            else:
+                sim, se = r.detection, r.detection_stderr
             row.append(f"{p:.4f} | {sim:.4f} ± {se:.4f}")
         print(f"| {'no attack' if a is None else a} | " + " | ".join(row) + " |", flush=True)
 
