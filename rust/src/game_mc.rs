@@ -35,6 +35,7 @@
 //! [`MAX_TRACE_TABLE`]); a longer τ (only possible past 16384 steps without an arrival) reads its
 //! last entry.
 
+use std::hint::black_box;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use rayon::prelude::*;
@@ -456,14 +457,17 @@ impl Tile {
                     next_pos
                 };
                 let arrive = high | plan.lam.draw(w & 0xffff, rng);
-                let keep = usize::from(!arrive).wrapping_neg(); // all ones iff no arrival
+                // Masks instead of selects: the outcomes are coin flips, and a mispredicted branch
+                // costs more than the whole step. `black_box` keeps LLVM from turning the
+                // masked arithmetic back into branches.
+                let keep = black_box(usize::from(!arrive).wrapping_neg()); // ones iff no arrival
                 let tau = (self.tau[l] + 1) & keep;
                 self.tau[l] = tau;
                 self.window_cost[l] += traces[tau.min(last)];
                 self.high[l] += u64::from(high);
                 self.online_steps[l] += u64::from(online);
-                let flagged = self.flagged[l];
-                let z = (if flagged { 1 } else { self.z[l] + 1 }) & (keep as u64);
+                let reset = black_box(u64::from(self.flagged[l]).wrapping_neg()); // ones iff flagged
+                let z = (((self.z[l] + 1) & !reset) | (reset & 1)) & (keep as u64);
                 self.z[l] = z;
                 let mu_draw = if MU {
                     plan.mu.draw((w >> 16) & 0xffff, rng)
@@ -482,7 +486,7 @@ impl Tile {
                     let next = sigma + u64::from(flag);
                     self.sigma[l] = if next == period_t { 0 } else { next };
                 }
-                let forged = FORGE && !flag && plan.gamma.draw(w >> 48, rng);
+                let forged = FORGE & !flag & plan.gamma.draw(w >> 48, rng);
                 let delivered = (flag & !blocked) | forged;
                 self.flagged[l] = flag;
                 self.pending[l] = delivered;
@@ -493,7 +497,7 @@ impl Tile {
                 if BINS {
                     self.bins[bin_of[gap.min(gap_last)] as usize][l] += u32::from(counted);
                 }
-                self.gap[l] = gap & usize::from(!delivered).wrapping_neg();
+                self.gap[l] = gap & black_box(usize::from(!delivered).wrapping_neg());
             }
         }
     }
