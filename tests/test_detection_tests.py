@@ -311,7 +311,7 @@ def test_detection_probability_by_monte_carlo_of_the_normal_model():
     s = y @ w_hat
     for s_hi in (-2.0, 0.0, 1.0):
         emp = np.mean((x2 > t.critical) & (s <= s_hi))
-        got = _joint_tail(cov, mean, t.critical, w_hat, s_hi)
+        got = _joint_tail(t, att, s_hi)
         assert abs(emp - got) < 4 * math.sqrt(max(emp, 1e-4) / len(y)) + 0.002, (s_hi, emp, got)
 
 

@@ -36,6 +36,18 @@ from .detectors import (
     interval_test,
 )
 from .grid import study_grid
+from .frontier import StealthyFrontier, plot_frontiers, stealthy_frontier
+from .game import (
+    GameSimulation,
+    GameSolution,
+    Payoff,
+    SensorPolicy,
+    Stackelberg,
+    game_payoff,
+    plot_game,
+    simulate_game,
+    solve_game,
+)
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
 from .montecarlo import (
     AttackPattern,
@@ -108,6 +120,18 @@ __all__ = [
     "flag_interval_law",
     "interval_test",
     "study_grid",
+    "GameSimulation",
+    "GameSolution",
+    "Payoff",
+    "SensorPolicy",
+    "Stackelberg",
+    "StealthyFrontier",
+    "game_payoff",
+    "plot_frontiers",
+    "plot_game",
+    "simulate_game",
+    "solve_game",
+    "stealthy_frontier",
     "AttackPattern",
     "OfflineSchedule",
     "OnlineSchedule",

@@ -67,26 +67,47 @@ def tail(lam: np.ndarray, b: np.ndarray, delta: np.ndarray, x: np.ndarray) -> np
 def _saddlepoint(lam, b2, delta, x, top):
     r = lam / top[:, None]  # in [0, 1]
 
-    def terms(s):
+    def terms(s, rows):
         # 1 - 2 λ_j t with t = (1 - e^s) / (2 max λ), written without cancellation.
         e = np.exp(s)[:, None]
-        d = (1.0 - r) + r * e
-        return d, (1.0 - e[:, 0]) / (2.0 * top)
+        d = (1.0 - r[rows]) + r[rows] * e
+        return d, (1.0 - e[:, 0]) / (2.0 * top[rows])
 
-    def k1(s):
-        d, _ = terms(s)
-        return delta + np.sum(lam / d + lam * b2 / d**2, axis=1)
-
-    # K'(t) increases in t, i.e. decreases in s: bisection on s over [-700, 60].
-    lo = np.full(len(x), -700.0)  # t near the pole: K' huge
-    hi = np.full(len(x), 60.0)  # t very negative: K' near delta
-    for _ in range(90):
-        mid = 0.5 * (lo + hi)
-        big = k1(mid) > x
-        lo = np.where(big, mid, lo)
-        hi = np.where(big, hi, mid)
-    s = 0.5 * (lo + hi)
-    d, t = terms(s)
+    # K'(t) - x increases in t, i.e. decreases in s: Newton in s, safeguarded by bisection on
+    # the bracket [-700, 60] (t near the pole, where K' is huge; t very negative, K' near delta),
+    # iterated on the rows not yet converged.
+    lo = np.full(len(x), -700.0)
+    hi = np.full(len(x), 60.0)
+    s = np.zeros(len(x))
+    active = np.arange(len(x))
+    for _ in range(200):
+        sa = s[active]
+        d, _t = terms(sa, active)
+        la, b2a = lam[active], b2[active]
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # at the pole: inf
+            k1 = delta[active] + np.sum(la / d + la * b2a / d**2, axis=1)
+            k2 = np.sum(2 * la**2 / d**2 + 4 * la**2 * b2a / d**3, axis=1)
+            f = k1 - x[active]
+            big = f > 0
+            lo[active] = np.where(big, sa, lo[active])
+            hi[active] = np.where(big, hi[active], sa)
+            # Newton on log(K' - δ) - log(x - δ), nearly linear in s both near the pole and far
+            # from it: its derivative is (dK'/ds) / (K' - δ), with dK'/ds = -K'' e^s / (2 max λ).
+            excess = k1 - delta[active]
+            g = np.log(excess) - np.log(x[active] - delta[active])
+            slope = -k2 * np.exp(sa) / (2.0 * top[active]) / excess
+            step = sa - g / slope
+        la_, ha = lo[active], hi[active]
+        close = np.abs(step - sa) <= 1e-12 * np.maximum(1.0, np.abs(sa))
+        inside = np.isfinite(step) & (((step > la_) & (step < ha)) | close)
+        new = np.where(inside, step, 0.5 * (la_ + ha))
+        done = (inside & close) | (ha - la_ < 1e-13)
+        s[active] = new
+        active = active[~done]
+        if active.size == 0:
+            break
+    rows = np.arange(len(x))
+    d, t = terms(s, rows)
     K = delta * t + np.sum(-0.5 * np.log(d) + lam * b2 * t[:, None] / d, axis=1)
     K2 = np.sum(2 * lam**2 / d**2 + 4 * lam**2 * b2 / d**3, axis=1)
     w2 = np.maximum(2.0 * (t * x - K), 0.0)

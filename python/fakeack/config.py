@@ -11,6 +11,7 @@ example (:func:`example_text`), which is the paper's system of Sec. V::
     [attack]            # betas = ["1/5", "2/3"]; random = [0.2]; inject = [0.05];
                         # optional [attack.sweep] t_max = 60
     [montecarlo]        # runs, horizon, seed, mode; omit the section to skip the Monte Carlo
+    [game]              # the sensor-attacker game of ``fakeack game`` (fakeack._game_config)
 """
 
 from __future__ import annotations
@@ -40,6 +41,7 @@ from ._config_values import (
     strip_name,
     toml_kind,
 )
+from ._game_config import GAME_SECTION
 from ._validate import MODES, PROTOCOLS, as_ratio
 from .attacks import FlagInjection, PeriodicBlocking, RandomBlocking, as_attack
 from .schedules import OnlineDesign, design_online, energy_ratio
@@ -70,6 +72,7 @@ _SECTIONS: dict[str, Section] = {
     "online": Section(("design", "z0", "mu")),
     "attack": Section(("betas", "random", "inject", "sweep")),
     "montecarlo": Section(("runs", "horizon", "seed", "mode", "protocol")),
+    "game": GAME_SECTION,  # read by fakeack game (fakeack._game_config)
 }
 _SWEEP_SECTION = Section(("t_max",))
 

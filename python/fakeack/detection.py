@@ -7,12 +7,10 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
-from scipy.special import ndtri
 
 from . import _fakeack
 from ._validate import as_int, as_probability
 from .attacks import as_attack, core_attack
-from .montecarlo import OnlineSchedule, simulate
 from .schedules import _check_online as _online
 from .system import LinearSystem
 
@@ -294,18 +292,25 @@ def detect_attack(
 
 @dataclass(frozen=True)
 class DetectionRates:
-    """Simulated performance of :func:`detect_attack`."""
+    """Simulated performance of the sensor's tests (see :func:`detection_rates`)."""
 
     false_alarm: float
-    """Fraction of attack-free runs flagged as attacked (should be close to alpha)."""
+    """Fraction of attack-free windows flagged as attacked (should be close to alpha)."""
     detection: float
-    """Fraction of attacked runs flagged."""
+    """Fraction of attacked windows flagged."""
     beta_hat_mean: float
+    """Mean of :func:`estimate_beta` over the attacked windows."""
     beta_hat_std: float
     beta: float
+    """The attack's budget (the blocking part's, for an injection)."""
     runs: int
     n_steps: int
     alpha: float
+    false_alarm_stderr: float = math.nan
+    detection_stderr: float = math.nan
+    test: str = "count"
+    alternative: str = "less"
+    burn_in: int = 0
 
 
 def detection_rates(
@@ -317,14 +322,21 @@ def detection_rates(
     mu: Any = 1.0,
     alpha: Any = 0.01,
     seed: Any = 1,
+    test: str = "count",
+    alternative: str | None = None,
+    burn_in: Any = 0,
 ) -> DetectionRates:
-    """False-alarm and detection rates of :func:`detect_attack` by Monte Carlo of the protocol.
+    """False-alarm and detection rates of the sensor's tests by Monte Carlo of the protocol.
 
     Simulates ``runs`` attack-free and ``runs`` attacked observation windows of ``n_steps`` steps
-    with :func:`fakeack.simulate` (the flag process does not depend on the plant) and applies the
-    test to each window's count of flag-ACKs delivered to the sensor. Forged flag-ACKs
+    (one window per run, after ``burn_in`` steps; the flag process does not depend on the plant)
+    with the closed-loop kernel of :func:`fakeack.simulate_game`, and applies the test to
+    each: the count test of :func:`detect_attack` or the interval test of
+    :func:`fakeack.detect_intervals`, with their exact alarm regions. With ``burn_in=0`` every
+    window starts from the paper's initial condition; a burn-in of a window or more puts the
+    window near the stationary regime that :func:`fakeack.detection_probability` describes. Forged flag-ACKs
     (:class:`fakeack.FlagInjection`) count as delivered: the sensor cannot tell them from genuine
-    ones, which is how :func:`fakeack.rate_matching_attack` hides from the test.
+    ones, which is how :func:`fakeack.rate_matching_attack` hides from the count test.
 
     Parameters
     ----------
@@ -346,24 +358,40 @@ def detection_rates(
         Level of the test (default 0.01).
     seed : int, optional
         Seed of the attack-free windows (the attacked ones use seed + 1).
+    test : {"count", "interval"}, optional
+        The test (default the count test).
+    alternative : {"less", "greater", "two-sided"}, optional
+        The count test's alternative (default "less", as :func:`detect_attack`); the interval test
+        is two-sided (the default for it, and the only value it takes).
+    burn_in : int, optional
+        Steps simulated before each window, rounded up to whole windows (default 0).
     """
+    from .detectors import check_alternative, check_test, simulate_windows
+
     lam, z0, mu = _online(lam, z0, mu)
     att = as_attack(attack)
     if att is None:
         raise ValueError("attack: give the attack whose detection rate you want, e.g. (1, 5)")
     n = as_int("n_steps", n_steps, minimum=1)
-    runs = as_int("runs", runs, minimum=2)
+    runs = as_int("runs", runs, minimum=2, maximum=1 << 24)
     alpha = as_probability("alpha", alpha)
     seed = as_int("seed", seed, minimum=0, maximum=2**63)
-    expected, sd_n = _count_law(n, lam, z0, mu)
-    sched = OnlineSchedule(z0, mu)
-    counts = {}
+    test = check_test(test)
+    if alternative is None:
+        alternative = "less" if test == "count" else "two-sided"
+    alternative = check_alternative(alternative)
+    if test == "interval" and alternative != "two-sided":
+        raise ValueError("alternative: the interval test is two-sided by construction")
+    burn_in = as_int("burn_in", burn_in, minimum=0)
+    flagged, se = {}, {}
+    delivered = None
     for name, a, sd in (("clean", None, seed), ("attacked", att, seed + 1)):
-        res = simulate(_any_system(), lam, sched, n, runs, seed=sd, attack=a, record_runs=True)
-        counts[name] = res.delivered_per_run
-    z_crit = float(ndtri(alpha))
-    flagged = {k: float(np.mean((c - expected) / sd_n < z_crit)) for k, c in counts.items()}
-    betas = np.array([estimate_beta(int(c), n, lam, z0, mu) for c in counts["attacked"]])
+        alarms, counts = simulate_windows(lam, z0, mu, a, n, runs, sd, test, alpha, alternative, burn_in)
+        p = float(np.mean(alarms))
+        flagged[name], se[name] = p, math.sqrt(max(p * (1 - p), 0.0) / runs)
+        delivered = counts
+    betas = np.array([estimate_beta(int(c), n, lam, z0, mu) for c in delivered])
     beta = float(att.beta)
     return DetectionRates(flagged["clean"], flagged["attacked"], float(betas.mean()),
-                          float(betas.std(ddof=1)), beta, runs, n, alpha)
+                          float(betas.std(ddof=1)), beta, runs, n, alpha, se["clean"], se["attacked"],
+                          test, alternative, burn_in)

@@ -371,21 +371,27 @@ def detect_intervals(
 # Detection probabilities.
 
 
-def _count_probability(lam, z0, mu, n, alpha, alternative, attack, harm):
-    lo, hi = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
+def _count_moments(lam: float, z0: int, mu: float, n: int, attack: Any) -> tuple[float, float]:
+    """(mean, sd) of a stationary window's count under the attack (:func:`flag_count_moments`)."""
     w = walk(lam, z0, attack, mu)
     if w.endless:
-        mean, sd = 0.0, 0.0
-    else:
-        _, sig = w.time_covariance(np.array([1]))
-        mean, sd = n / w.mean, math.sqrt(max(n * float(sig[0, 0]), 0.0))
-    if harm is not None:  # only alarms with an estimated budget above beta_bar
+        return 0.0, 0.0
+    _, sig = w.time_covariance(np.array([1]))
+    return n / w.mean, math.sqrt(max(n * float(sig[0, 0]), 0.0))
+
+
+def _count_alarm(bounds: tuple[int, int], n: int, moments: tuple[float, float], harm: int | None) -> float:
+    """P(count alarm) for a normal count with continuity correction; with ``harm``, only alarms
+    with N <= harm (an estimated budget above β̄)."""
+    lo, hi = bounds
+    mean, sd = moments
+    if harm is not None:
         hi_region = (hi, harm) if hi <= harm else None
         lo = min(lo, harm)
     else:
         hi_region = (hi, n)
 
-    def cdf(k: float) -> float:  # P(N <= k), normal with continuity correction
+    def cdf(k: float) -> float:  # P(N <= k)
         if sd == 0.0:
             return float(mean <= k + 0.5)
         return float(ndtr((k + 0.5 - mean) / sd))
@@ -394,6 +400,11 @@ def _count_probability(lam, z0, mu, n, alpha, alternative, attack, harm):
     if hi_region is not None and hi_region[0] <= n:
         p += cdf(hi_region[1]) - cdf(hi_region[0] - 1)
     return min(max(p, 0.0), 1.0)
+
+
+def _count_probability(lam, z0, mu, n, alpha, alternative, attack, harm):
+    bounds = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
+    return _count_alarm(bounds, n, _count_moments(lam, z0, mu, n, attack), harm)
 
 
 def _attack_form(test: IntervalTest, attack: Any) -> tuple[np.ndarray, np.ndarray] | None:
@@ -411,71 +422,123 @@ def _attack_form(test: IntervalTest, attack: Any) -> tuple[np.ndarray, np.ndarra
     return mean, cov
 
 
-def _interval_probability(test: IntervalTest, attack: Any, harm: int | None) -> float:
-    form = _attack_form(test, attack)
-    n = test.n_steps
-    if form is None:  # no flag: O = 0, X² = Σ E_i, N = 0
-        fires = test.expected.sum() > test.critical
-        return float(fires and (harm is None or harm >= 0))
-    mean, cov = form
+_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(24)
+
+
+class _Form:
+    """The interval statistic under one attack, ready for tails at any critical value.
+
+    X² = y'y with y ~ N(mean, cov) (:func:`_attack_form`). For the harmful rule the count enters
+    as s = ŵ'y (ŵ = sqrt(p0), N - n/m0 = sqrt(n/m0) s): X² = s² + |y_⊥|², and given s the
+    projection y_⊥ is normal with a mean linear in s and a fixed covariance, so
+    P(X² > c, s <= s_hi) is an integral over s of generalised chi-square tails (Gauss-Legendre,
+    split where s² crosses c).
+    """
+
+    def __init__(self, test: IntervalTest, attack: Any):
+        form = _attack_form(test, attack)
+        self.none = form is None  # no flag: O = 0, X² = Σ E deterministic, N = 0
+        self.total = float(test.expected.sum())
+        if self.none:
+            return
+        mean, cov = form
+        self.lam, self.b, self.delta = _quadform.canonical(cov, mean)
+        w_hat = np.sqrt(test.expected / self.total)
+        var_s = float(w_hat @ cov @ w_hat)
+        self.mu_s = float(w_hat @ mean)
+        self.sd_s = math.sqrt(max(var_s, 0.0))
+        self.count_fixed = var_s <= 1e-14 * max(1.0, float(np.trace(cov)))
+        if self.count_fixed:
+            return
+        P = np.eye(len(mean)) - np.outer(w_hat, w_hat)
+        cross = P @ cov @ w_hat
+        cond = P @ cov @ P - np.outer(cross, cross) / var_s
+        m_0 = P @ mean - cross * self.mu_s / var_s
+        m_1 = cross / var_s
+        vals, vecs = np.linalg.eigh(0.5 * (cond + cond.T))
+        keep = vals > 1e-12 * max(vals.max(initial=0.0), 1e-300)
+        self.lam_c = vals[keep]
+        root = np.sqrt(self.lam_c)
+        p_0, p_1 = vecs[:, keep].T @ m_0, vecs[:, keep].T @ m_1
+        self.b_0, self.b_1 = p_0 / root, p_1 / root
+        # |m(s)|² - |U'm(s)|², the part of the conditional mean outside the range: a2 s² + a1 s + a0.
+        self.a = (m_0 @ m_0 - p_0 @ p_0, 2 * (m_0 @ m_1 - p_0 @ p_1), m_1 @ m_1 - p_1 @ p_1)
+
+    def rows_any(self, c: float) -> tuple:
+        """Rows (lam, b, delta, x, weight) whose weighted tails sum to P(X² > c)."""
+        return self.lam[None], self.b[None], np.array([self.delta]), np.array([c]), np.ones(1)
+
+    def rows_joint(self, c: float, s_hi: float) -> tuple | float:
+        """Rows for P(X² > c, s <= s_hi), or the probability itself when no integral is needed."""
+        if self.count_fixed:
+            if self.mu_s > s_hi:
+                return 0.0
+            return self.rows_any(c)
+        lo = self.mu_s - 9.0 * self.sd_s
+        if s_hi <= lo:
+            return 0.0
+        hi = min(s_hi, self.mu_s + 9.0 * self.sd_s)
+        cuts = sorted({lo, hi, *[r for r in (-math.sqrt(c), math.sqrt(c)) if lo < r < hi]})
+        pieces = list(zip(cuts[:-1], cuts[1:], strict=True))
+        s = np.concatenate([0.5 * (b - a) * _NODES + 0.5 * (b + a) for a, b in pieces])
+        wq = np.concatenate([0.5 * (b - a) * _WEIGHTS for a, b in pieces])
+        dens = np.exp(-0.5 * ((s - self.mu_s) / self.sd_s) ** 2) / (self.sd_s * math.sqrt(2 * math.pi))
+        b = self.b_0[None] + s[:, None] * self.b_1[None]
+        delta = np.maximum(self.a[0] + self.a[1] * s + self.a[2] * s**2, 0.0)
+        lam = np.broadcast_to(self.lam_c, b.shape)
+        return lam, b, delta, c - s**2, wq * dens
+
+
+def _sum_tails(batches: list) -> np.ndarray:
+    """Σ weight · tail per batch (a batch is a probability, or rows from :class:`_Form`), in one
+    vectorised call."""
+    out = np.zeros(len(batches))
+    rows = [(i, r) for i, r in enumerate(batches) if not isinstance(r, float)]
+    for i, r in enumerate(batches):
+        if isinstance(r, float):
+            out[i] = r
+    if not rows:
+        return out
+    k = max(r[0].shape[1] for _, r in rows)
+    sizes = [len(r[2]) for _, r in rows]
+    lam, b = np.zeros((sum(sizes), k)), np.zeros((sum(sizes), k))
+    at = 0
+    for (_, r), size in zip(rows, sizes, strict=True):
+        lam[at:at + size, : r[0].shape[1]] = r[0]
+        b[at:at + size, : r[1].shape[1]] = r[1]
+        at += size
+    delta = np.concatenate([r[2] for _, r in rows])
+    x = np.concatenate([r[3] for _, r in rows])
+    w = np.concatenate([r[4] for _, r in rows])
+    seg = np.concatenate([np.full(len(r[2]), j) for j, (_, r) in enumerate(rows)])
+    sums = np.bincount(seg, weights=w * _quadform.tail(lam, b, delta, x), minlength=len(rows))
+    for j, (i, _) in enumerate(rows):
+        out[i] = sums[j]
+    return np.clip(out, 0.0, 1.0)
+
+
+def _interval_batch(test: IntervalTest, form: _Form, harm: int | None) -> tuple | float:
+    """One attack's rows for the interval test's (harmful) alarm probability."""
+    if form.none:
+        return float(form.total > test.critical and (harm is None or harm >= 0))
     if harm is None:
-        lam_, b, delta = _quadform.canonical(cov, mean)
-        return float(_quadform.tail(lam_[None], b[None], delta, test.critical)[0]) if lam_.size else float(
-            delta > test.critical)
+        return form.rows_any(test.critical)
     if harm < 0:
         return 0.0
-    # Harmful alarms: X² > c and N <= harm. N - n/m0 = sqrt(n/m0) s with s = ŵ'y, ŵ = sqrt(p0).
-    p0 = test.expected / test.expected.sum()
-    m0 = n / test.expected.sum()
+    n = test.n_steps
+    m0 = n / form.total
     s_hi = (harm + 0.5 - n / m0) / math.sqrt(n / m0)
-    return _joint_tail(cov, mean, test.critical, np.sqrt(p0), s_hi)
+    return form.rows_joint(test.critical, s_hi)
 
 
-def _joint_tail(S: np.ndarray, mu: np.ndarray, c: float, w_hat: np.ndarray, s_hi: float) -> float:
-    """P(y'y > c and ŵ'y <= s_hi) for y ~ N(mu, S), ŵ a unit vector.
+def _interval_probability(test: IntervalTest, attack: Any, harm: int | None) -> float:
+    return float(_sum_tails([_interval_batch(test, _Form(test, attack), harm)])[0])
 
-    With s = ŵ'y, y'y = s² + |y_⊥|², and given s the projection y_⊥ is normal with a mean linear
-    in s and a fixed covariance; the conditional tail is integrated over s by Gauss-Legendre.
-    """
-    var_s = float(w_hat @ S @ w_hat)
-    mu_s = float(w_hat @ mu)
-    if var_s <= 1e-14 * max(1.0, float(np.trace(S))):
-        if mu_s > s_hi:
-            return 0.0
-        lam_, b, delta = _quadform.canonical(S, mu)
-        return float(_quadform.tail(lam_[None], b[None], delta, c)[0]) if lam_.size else float(delta > c)
-    sd_s = math.sqrt(var_s)
-    lo = mu_s - 9.0 * sd_s
-    if s_hi <= lo:
-        return 0.0
-    hi = min(s_hi, mu_s + 9.0 * sd_s)
-    P = np.eye(len(mu)) - np.outer(w_hat, w_hat)
-    cross = P @ S @ w_hat
-    cond = P @ S @ P - np.outer(cross, cross) / var_s
-    m_0 = P @ mu - cross * mu_s / var_s
-    m_1 = cross / var_s
-    vals, vecs = np.linalg.eigh(0.5 * (cond + cond.T))
-    keep = vals > 1e-12 * max(vals.max(initial=0.0), 1e-300)
-    lam_, U = vals[keep], vecs[:, keep]
-    # Pieces split where s² crosses c (the conditional tail jumps to 1 there).
-    cuts = sorted({lo, hi, *[r for r in (-math.sqrt(c), math.sqrt(c)) if lo < r < hi]})
-    nodes, weights = np.polynomial.legendre.leggauss(40)
-    total = 0.0
-    for a, bnd in zip(cuts[:-1], cuts[1:], strict=False):
-        s = 0.5 * (bnd - a) * nodes + 0.5 * (bnd + a)
-        wq = 0.5 * (bnd - a) * weights
-        means = m_0[None] + s[:, None] * m_1[None]
-        proj = means @ U
-        bb = proj / np.sqrt(lam_) if lam_.size else proj[:, :0]
-        delta = np.maximum(np.sum(means**2, axis=1) - np.sum(proj**2, axis=1), 0.0)
-        lamm = np.broadcast_to(lam_, (len(s), lam_.size))
-        if lam_.size:
-            cond_tail = _quadform.tail(lamm, bb, delta, c - s**2)
-        else:
-            cond_tail = (delta > c - s**2).astype(float)
-        dens = np.exp(-0.5 * ((s - mu_s) / sd_s) ** 2) / (sd_s * math.sqrt(2 * math.pi))
-        total += float(np.sum(wq * dens * cond_tail))
-    return min(max(total, 0.0), 1.0)
+
+def _joint_tail(test: IntervalTest, attack: Any, s_hi: float) -> float:
+    """P(X² > c and ŵ'y <= s_hi) under the attack (for the tests)."""
+    form = _Form(test, attack)
+    return float(_sum_tails([form.rows_joint(test.critical, s_hi)])[0])
 
 
 def detection_probability(
@@ -556,3 +619,32 @@ def detection_probability(
             f"alternative: the interval test is two-sided by construction, got {alternative!r}"
         )
     return _interval_probability(_interval_test(lam, z0, mu, n, alpha), att, harm)
+
+
+def simulate_windows(
+    lam: float, z0: int, mu: float, attack: Any, n: int, runs: int, seed: int, test: str, alpha: float,
+    alternative: str, burn_in: int, progress: bool | None = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Alarms (0/1) and delivered flag-ACKs of ``runs`` simulated windows of ``n`` steps, one per run,
+    after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back)."""
+    from . import _fakeack
+    from .attacks import core_attack
+    from .detection import _any_system
+    from .montecarlo import _Progress
+
+    if test == "count":
+        lo, hi = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
+        args = ("count", lo, hi, [], [], 0.0, None, 0)
+    else:
+        t = _interval_test(lam, z0, mu, n, alpha)
+        args = ("interval", -1, 0, [int(e) for e in t.edges], [float(e) for e in t.expected],
+                float(t.critical), None, 0)
+    bar = _Progress(runs, progress)
+    burn_in = -(-burn_in // n) * n  # whole windows, so that the measured window is one window
+    try:
+        out = _fakeack.simulate_game(
+            _any_system()._core, lam, 1, 2, z0, mu, core_attack(attack), *args, n, n, burn_in, runs, seed, bar
+        )
+    finally:
+        bar.close()
+    return out["alarms"], out["delivered"]

@@ -182,22 +182,17 @@ class _Walk:
 
 
 def _stationary(P: np.ndarray) -> np.ndarray:
-    """Stationary law of a stochastic matrix with one recurrent class (GTH elimination)."""
-    P = np.array(P, dtype=np.float64)
+    """Stationary law of a stochastic matrix with one recurrent class (types that are never the
+    start of a gap get zero mass)."""
     n = P.shape[0]
     if n == 1:
         return np.ones(1)
-    for k in range(n - 1, 0, -1):
-        s = P[k, :k].sum()
-        if s <= 0.0:  # type k is transient and cannot be left towards lower types: no mass flows
-            P[:k, k] = 0.0
-            continue
-        P[:k, :k] += np.outer(P[:k, k], P[k, :k]) / s
-        P[:k, k] /= s
-    pi = np.zeros(n)
-    pi[0] = 1.0
-    for k in range(1, n):
-        pi[k] = pi[:k] @ P[:k, k]
+    M = P.T - np.eye(n)
+    M[0] = 1.0  # one balance equation replaced by the normalisation
+    rhs = np.zeros(n)
+    rhs[0] = 1.0
+    pi = np.linalg.solve(M, rhs)
+    pi = np.clip(pi, 0.0, None)
     return pi / pi.sum()
 
 

@@ -8,7 +8,7 @@ from collections.abc import Callable
 from .. import __version__
 from .._validate import MODES, PROTOCOLS
 from ..study import DEFAULT_HORIZON, DEFAULT_OUT, DEFAULT_RUNS, DEFAULT_SEED, DEFAULT_T_MAX
-from . import analyze, grid, reproduce, simulate, sweep
+from . import analyze, game, grid, reproduce, simulate, sweep
 
 __all__ = ["build_parser"]
 
@@ -235,6 +235,26 @@ def _add_grid(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=grid.run)
 
 
+def _add_game(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "game",
+        formatter_class=_Formatter,
+        help="the sensor-attacker game: value, strategies, Stackelberg, stealthy frontiers",
+        description="The repeated game between the sensor (a detection test and a fall-back to the "
+        "offline schedule) and an attacker choosing from a list, for the system of CONFIG.toml and its "
+        "[game] section (default: the paper's example and the README's game). Prints the value, both "
+        "optimal mixed strategies and the Stackelberg outcome; with --out writes fig_frontiers and "
+        "fig_game_payoff (PNG and SVG) and game.json.",
+    )
+    parser.add_argument(
+        "config", nargs="?", metavar="CONFIG.toml", help="the config file ('-' reads standard input)"
+    )
+    parser.add_argument("--out", metavar="DIR", help="write figures and game.json into DIR")
+    parser.add_argument("--no-figures", action="store_true", help="with --out, write game.json only")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of the text")
+    parser.set_defaults(func=game.run)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``fakeack`` command.
 
@@ -251,6 +271,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"fakeack {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_reproduce, _add_analyze, _add_sweep, _add_simulate, _add_grid):
+    for add in (_add_reproduce, _add_analyze, _add_sweep, _add_simulate, _add_grid, _add_game):
         add(sub)
     return parser

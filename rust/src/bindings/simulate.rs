@@ -47,7 +47,7 @@ fn schedule_of(kind: &str, p: u64, q: u64, z0: u64, mu: f64) -> PyResult<Schedul
 /// Ctrl-C and to report progress; either failing cancels the work and returns its error. The
 /// last check runs after the worker has ended, so a Ctrl-C that arrives before the result is
 /// complete is raised and the result dropped, never returned as if nothing had happened.
-fn run_interruptible<T: Send>(
+pub(crate) fn run_interruptible<T: Send>(
     py: Python<'_>,
     cancel: &AtomicBool,
     report: impl Fn() -> PyResult<()>,
