@@ -35,7 +35,6 @@ from .detectors import (
     detection_probability,
     interval_test,
 )
-from .grid import study_grid
 from .frontier import StealthyFrontier, plot_frontiers, stealthy_frontier
 from .game import (
     GameSimulation,
@@ -48,6 +47,7 @@ from .game import (
     simulate_game,
     solve_game,
 )
+from .grid import study_grid
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
 from .montecarlo import (
     AttackPattern,

@@ -26,7 +26,7 @@ from scipy.special import ndtr
 from . import _quadform
 from ._validate import as_int, as_probability, as_real
 from .attacks import as_attack
-from .detection import _regime_rates, flag_interval_moments
+from .detection import _count_law, _regime_rates, flag_interval_moments
 from .intervals import walk
 from .schedules import _check_online
 
@@ -76,7 +76,7 @@ def count_p_value(z: float, alternative: str) -> float:
 def count_z(delivered: int, n: int, m: float, v: float) -> float:
     """(delivered - n/m) / sqrt(n v / m³): the count test's z score (as :func:`detect_attack`)."""
     expected = n / m
-    sd = math.sqrt(n * v / m**3)
+    sd = math.sqrt(n / m) * math.sqrt(v) / m  # m**3 alone may overflow
     if sd > 0:
         return (delivered - expected) / sd
     return 0.0 if delivered == expected else math.copysign(math.inf, delivered - expected)
@@ -95,6 +95,7 @@ def count_alarm_bounds(
     n = as_int("n_steps", n_steps, minimum=1)
     alpha = as_probability("alpha", alpha)
     alternative = check_alternative(alternative)
+    _count_law(n, lam, z0, mu)  # ValueError naming z0 when flags are too rare to test
     m, v = flag_interval_moments(lam, z0, mu)
 
     def alarm(d: int, side: str) -> bool:
