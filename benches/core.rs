@@ -12,8 +12,11 @@
 //!   on the paper's scalar system, |S| ≈ 1e4, 1e6, 1e7;
 //! * `sweep/t_max=..`: `Segments::for_system` + `sweep::sweep`, t_max = 1e3, 1e4 (the paper's online
 //!   schedule, λ = 0.5, z0 = 2, μ = 1);
+//! * `random_sweep/..`: `LinearSystem::j_random_sweep`, J under independent blocking at 10⁴ budgets
+//!   β on the paper's online schedule (λ = 0.5, z0 = 2, μ = 1 and 0.5), traces included;
 //! * `montecarlo/..`: `montecarlo::simulate`, covariance and state modes, paper's system, online
-//!   z0 = 2 under the attack "first 1 of every 5"; throughput in simulated steps (runs × horizon).
+//!   z0 = 2 under the attack "first 1 of every 5", and covariance mode under independent blocking
+//!   (β = 0.2) and forged flags (γ = 0.05); throughput in simulated steps (runs × horizon).
 //!
 //! Sample counts are criterion's minimum (10) with short measurement windows so that the whole file
 //! runs in a few minutes; the machine is usually shared, so read the numbers as indicative.
@@ -197,12 +200,33 @@ fn bench_sweep(c: &mut Criterion) {
     g.finish();
 }
 
-fn mc_config(mode: Mode, runs: u64, horizon: usize) -> McConfig {
-    // Block the first r = 1 of every t = 5 flag-ACKs.
+fn bench_random_sweep(c: &mut Criterion) {
+    let sys = paper_system();
+    let mut g = c.benchmark_group("random_sweep");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(3))
+        .sampling_mode(SamplingMode::Flat);
+    let betas: Vec<f64> = (0..10_000).map(|i| i as f64 / 10_000.0).collect();
+    g.throughput(Throughput::Elements(betas.len() as u64));
+    for mu in [1.0, 0.5] {
+        let design = fakeack::OnlineDesign::new(2, mu).unwrap();
+        g.bench_with_input(
+            BenchmarkId::new("betas=1e4", format!("mu={mu}")),
+            &design,
+            |b, &d| {
+                b.iter(|| black_box(sys.j_random_sweep(LAM, d, 0.0, black_box(&betas)).unwrap()))
+            },
+        );
+    }
+    g.finish();
+}
+
+fn mc_config(mode: Mode, runs: u64, horizon: usize, attack: Attack) -> McConfig {
     McConfig {
         lam: LAM,
         schedule: McSchedule::Online { z0: 2, mu: 1.0 },
-        attack: Some(Attack::periodic(1, 5).expect("r < t")),
+        attack: Some(attack),
         mode,
         protocol: Protocol::B,
         horizon,
@@ -219,11 +243,38 @@ fn bench_montecarlo(c: &mut Criterion) {
         .warm_up_time(Duration::from_millis(500))
         .measurement_time(Duration::from_secs(4))
         .sampling_mode(SamplingMode::Flat);
-    for (name, mode, runs, horizon) in [
-        ("covariance", Mode::Covariance, 65_536u64, 1_000usize),
-        ("state", Mode::State, 4_096, 1_000),
+    // Block the first r = 1 of every t = 5 flag-ACKs (the paper's attack), or the new attacks.
+    let periodic = Attack::periodic(1, 5).expect("r < t");
+    let random = Attack::Random { beta: 0.2 };
+    let inject = Attack::Injection {
+        gamma: 0.05,
+        block: None,
+    };
+    for (name, mode, runs, horizon, attack) in [
+        (
+            "covariance",
+            Mode::Covariance,
+            65_536u64,
+            1_000usize,
+            periodic.clone(),
+        ),
+        ("state", Mode::State, 4_096, 1_000, periodic),
+        (
+            "covariance_random0.2",
+            Mode::Covariance,
+            65_536,
+            1_000,
+            random,
+        ),
+        (
+            "covariance_inject0.05",
+            Mode::Covariance,
+            65_536,
+            1_000,
+            inject,
+        ),
     ] {
-        let cfg = mc_config(mode, runs, horizon);
+        let cfg = mc_config(mode, runs, horizon, attack);
         g.throughput(Throughput::Elements(runs * horizon as u64));
         g.bench_with_input(
             BenchmarkId::new(name, format!("{runs}x{horizon}")),
@@ -250,6 +301,7 @@ criterion_group!(
     bench_pbar,
     bench_stationary,
     bench_sweep,
+    bench_random_sweep,
     bench_montecarlo
 );
 criterion_main!(benches);

@@ -7,6 +7,7 @@ use crate::pattern::Segments;
 use crate::random::{self, ScaledTraces};
 use crate::schedules::Ratio;
 use crate::system::LinearSystem;
+use rayon::prelude::*;
 
 impl LinearSystem {
     /// Stationary J under an attack: the paper's eq. (13)-(14) for "first r of t", the renewal
@@ -43,10 +44,15 @@ impl LinearSystem {
         betas: &[f64],
     ) -> Result<Vec<f64>> {
         let walk = Walk::new(lam, design, gamma)?;
-        let mut traces = ScaledTraces::new(self, &walk);
+        // In parallel over β, each worker with its own trace table: the table's entries do not
+        // depend on how far it has grown, so the result does not depend on the split.
         betas
-            .iter()
-            .map(|&b| Ok(random::cycle(Some(&mut traces), &walk, b)?.j()))
+            .par_iter()
+            .with_min_len(256)
+            .map_init(
+                || ScaledTraces::new(self, &walk),
+                |traces, &b| Ok(random::cycle(Some(traces), &walk, b)?.j()),
+            )
             .collect()
     }
 
