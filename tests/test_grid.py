@@ -223,11 +223,7 @@ def test_bad_grids_are_refused_before_any_work(tmp_path, kwargs, message):
     assert not store.exists()
 
 
-def test_random_family_needs_random_blocking(systems):
-    if not hasattr(fa, "RandomBlocking"):
-        with pytest.raises(ValueError, match="needs fakeack.RandomBlocking"):
-            fa.study_grid(systems, [0.5], ["1/7"], [0.3], family="random")
-        return
+def test_random_family_is_independent_blocking(systems):
     ds = fa.study_grid(systems, [0.5, 0.6], ["1/7"], [0, 0.3, 0.9], family="random")
     s = systems["two"]
     z0, mu = fa.design_online(0.6, "1/7")
@@ -235,26 +231,31 @@ def test_random_family_needs_random_blocking(systems):
     for k, beta in enumerate([0, 0.3, 0.9]):
         single = fa.j_attack(s, 0.6, z0, mu=mu, attack=fa.RandomBlocking(beta))
         assert same_bits(c["j_attack"][k], single)
-    assert "beta_bar_random" in ds
+    assert same_bits(c["beta_bar_random"], fa.beta_bar_random(s, 0.6, "1/7", z0=z0, mu=mu))
 
 
-def test_random_family_monte_carlo_limitation_is_named(monkeypatch):
-    from fakeack import _grid_spec
-
-    if _grid_spec._mc_simulates_random_blocking():
-        pytest.skip("the Monte Carlo simulates random blocking")
-    # Stand in for RandomBlocking where it does not exist yet, to reach the Monte Carlo check.
-    if not hasattr(fa, "RandomBlocking"):
-        monkeypatch.setattr(fa, "RandomBlocking", object(), raising=False)
-    with pytest.raises(ValueError, match="does not simulate independent random blocking yet"):
-        fa.study_grid(
-            fa.LinearSystem(**PAPER),
-            [0.5],
-            ["1/7"],
-            [0.3],
-            family="random",
-            montecarlo=dict(runs=10, horizon=5),
-        )
+def test_random_family_monte_carlo_simulates_independent_blocking(systems):
+    """family="random" with montecarlo: each cell is one fa.simulate call under
+    RandomBlocking(beta) with the cell's seed, and agrees with the exact J within 4 standard
+    errors of the exact mean over its horizon (fa.expected_trace_curve). Kills: the Monte Carlo
+    simulating the periodic attack r/t = beta instead."""
+    mc = dict(runs=4000, horizon=300, seed=5)
+    ds = fa.study_grid(systems["paper"], [0.5], ["1/7"], ["1/5", "2/3"], family="random", montecarlo=mc)
+    s = systems["paper"]
+    z0, mu = fa.design_online(0.5, "1/7")
+    c = ds.isel(system=0).sel(lam=0.5, ratio="1/7")
+    for k, beta in enumerate([Fraction(1, 5), Fraction(2, 3)]):
+        seed = cell_seed(5, str(ds.system.values[0]), 0.5, Fraction(1, 7), beta)
+        res = fa.simulate(s, 0.5, fa.OnlineSchedule(z0, mu), horizon=300, runs=4000, seed=seed,
+                          attack=fa.RandomBlocking(beta))
+        assert same_bits(c["mc_j"][k], res.j) and same_bits(c["mc_stderr"][k], res.stderr)
+        exact = fa.j_attack(s, 0.5, z0, mu=mu, attack=fa.RandomBlocking(beta))
+        assert same_bits(c["mc_j_analytic"][k], exact)
+        horizon_mean = fa.expected_trace_curve(s, 0.5, fa.OnlineSchedule(z0, mu), 300,
+                                               fa.RandomBlocking(beta)).j_k[-1]
+        assert abs(res.j - horizon_mean) < 4 * res.stderr
+    # the periodic attack 1/5 has another J: the two families are not confused
+    assert abs(fa.j_attack(s, 0.5, z0, 1, 5, mu) - c["mc_j_analytic"][0]) > 0.005
 
 
 def test_store_round_trip_and_refusals(tmp_path, systems):

@@ -20,7 +20,7 @@ import numpy as np
 
 from . import _fakeack
 from ._grid_design import design
-from .attacks import MaskBlocking, PeriodicBlocking
+from .attacks import MaskBlocking, PeriodicBlocking, RandomBlocking
 from .montecarlo import OnlineSchedule, simulate
 from .system import LinearSystem
 
@@ -67,8 +67,6 @@ def mc_attack(family: str, beta: Fraction) -> Any:
     in lowest terms (every flag-ACK blocked at beta = 1), or independent blocking.
     """
     if family == "random":
-        from . import RandomBlocking  # type: ignore[attr-defined]
-
         return RandomBlocking(beta)
     if beta == 1:
         return MaskBlocking([1])

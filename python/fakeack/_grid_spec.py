@@ -189,42 +189,12 @@ def _montecarlo(mc: Any, beta: tuple[Fraction, ...], family: str) -> MonteCarlo 
                     f"beta {b}: the Monte Carlo's periodic attack r/t = beta would have a period of "
                     f"{b.denominator} flag-ACKs (at most {MAX_MC_PERIOD}); give beta as a simple fraction"
                 )
-    if family == "random" and not _mc_simulates_random_blocking():
-        raise ValueError(
-            "montecarlo with family='random': this version of fakeack's Monte Carlo does not simulate "
-            "independent random blocking yet, so the analytic values cannot be checked by simulation; "
-            "run the study without montecarlo, or with family='periodic'"
-        )
     return out
-
-
-def _mc_simulates_random_blocking() -> bool:
-    """Whether :func:`fakeack.simulate` accepts ``fakeack.RandomBlocking`` (a one-step probe)."""
-    import fakeack
-
-    if not hasattr(fakeack, "RandomBlocking"):
-        return False
-    from .montecarlo import OnlineSchedule, simulate
-
-    probe = LinearSystem(0.5, 1.0, 1.0, 1.0)
-    try:
-        simulate(probe, 0.5, OnlineSchedule(1), horizon=1, runs=1, seed=0, attack=fakeack.RandomBlocking(0.5))
-    except (TypeError, ValueError):
-        return False
-    return True
 
 
 def _check_family(family: Any) -> str:
     if family not in FAMILIES:
         raise ValueError(f"family must be 'periodic' or 'random', got {family!r}")
-    if family == "random":
-        import fakeack
-
-        if not hasattr(fakeack, "RandomBlocking"):
-            raise ValueError(
-                "family='random' needs fakeack.RandomBlocking (independent blocking), which this "
-                "version of fakeack does not have"
-            )
     return family
 
 

@@ -343,7 +343,7 @@ def study_grid(
         The attacked cost at each β: ``"periodic"``, the large-period worst case
         :math:`J_\infty(\beta)` of :func:`fakeack.j_attack_limit` (the decision is
         :func:`fakeack.choose_schedule`'s); ``"random"``, independent blocking with probability β
-        (``fakeack.RandomBlocking``, where this version has it), with ``beta_bar_random``.
+        (:class:`fakeack.RandomBlocking`), with ``beta_bar_random``.
     t_max : int
         Largest attack period of the finite threshold (default 60).
     montecarlo : dict, optional
