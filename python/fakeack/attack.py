@@ -154,7 +154,10 @@ def j_attack(
     :math:`a^\tau\mathrm{Tr}\,h^\tau(\bar P)`: :math:`O(r z_0)` for the paper's attack, so
     chains of :math:`10^7` states and more cost microseconds, and long blocked runs never overflow
     where the weighted terms are finite. Any blocking mask and any :math:`\mu` use the renewal
-    form (README, Model notes), checked against the full chain (:func:`general_attack_chain`).
+    form (Model notes), checked against the full chain (:func:`general_attack_chain`).
+    Independent blocking and forged flag-ACKs, which the paper leaves to future work, use the
+    renewal cycle from one fresh start to the next (see :class:`fakeack.RandomBlocking` and
+    :class:`fakeack.FlagInjection`).
 
     Parameters
     ----------
@@ -171,9 +174,10 @@ def j_attack(
         Memory mix :math:`\mu \in [0, 1]` as in :func:`fakeack.j_online`. For ``mu < 1`` the chain
         also needs the zeros in the memory since its last reset (the paper says its results cover
         this case but never writes it down). Costs :math:`O(r^2)` for ``mu < 1``.
-    attack : PeriodicBlocking or MaskBlocking, optional
-        The attack, instead of ``r, t`` (an attack object may also be passed in r's place). A
-        mask that blocks every flag-ACK is refused: its cost is :func:`fakeack.j_max`.
+    attack : PeriodicBlocking, MaskBlocking, RandomBlocking, FlagInjection or str, optional
+        The attack, instead of ``r, t`` (an attack object may also be passed in r's place), or a
+        spelling such as ``"1/5"``, ``"random:0.3"`` or ``"inject:0.1+random:0.3"``. A mask that
+        blocks every flag-ACK is refused: its cost is :func:`fakeack.j_max`.
 
     Returns
     -------
@@ -188,8 +192,11 @@ def j_attack(
     >>> s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
     >>> round(fa.j_attack(s, 0.5, 2, attack=fa.PeriodicBlocking(1, 5)), 6)
     1.819651
-    >>> fa.j_attack(s, 0.5, 2, 1, 5) == fa.j_attack(s, 0.5, 2, fa.MaskBlocking([1, 0, 0, 0, 0]))
+    >>> mask = fa.MaskBlocking([1, 0, 0, 0, 0])
+    >>> fa.j_attack(s, 0.5, 2, 1, 5) == fa.j_attack(s, 0.5, 2, attack=mask)
     True
+    >>> round(fa.j_attack(s, 0.5, 2, attack=fa.RandomBlocking(0.2)), 6)
+    1.832057
     """
     core = _core(system)
     att = attack_argument(r, t, attack)
