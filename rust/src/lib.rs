@@ -53,7 +53,6 @@ pub mod analysis;
 pub mod attack;
 pub mod chain;
 pub mod error;
-pub mod game_mc;
 pub mod general;
 pub mod grid;
 mod linalg;

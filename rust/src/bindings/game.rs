@@ -1,4 +1,4 @@
-//! The closed-loop game Monte Carlo ([`crate::game_mc`]): converts the policy, runs with the GIL
+//! The closed-loop game Monte Carlo ([`crate::montecarlo::game`]): converts the policy, runs with the GIL
 //! released, Ctrl-C and progress, returns per-run arrays.
 
 use numpy::IntoPyArray;
@@ -10,7 +10,7 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use super::simulate::run_interruptible;
 use super::system::PySystem;
 use super::{attack_of, design, PyAttack};
-use crate::game_mc::{Detector, GameConfig, Policy};
+use crate::montecarlo::game::{Detector, GameConfig, Policy};
 use crate::schedules::{offline_schedule, Ratio};
 
 /// The policy named `kind`: "online" (never tested), "offline", "count" (alarm iff N <= lo or

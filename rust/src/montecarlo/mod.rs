@@ -166,6 +166,7 @@ mod bitslice;
 mod config;
 mod cpu;
 mod driver;
+pub mod game;
 mod kernel;
 mod plan;
 mod state;

@@ -1,0 +1,269 @@
+//! Closed-loop Monte Carlo of the sensor-attacker game: the protocol of [`crate::montecarlo`]
+//! (sensor, lossy channel, remote estimator, event detector, attacker) with the sensor's detector
+//! and its fall-back to the offline schedule in the loop.
+//!
+//! Each run plays `burn_in + horizon` steps from the paper's initial condition (high power at
+//! k = 1, memory all ones, counter 0), cut into windows of `window` steps from the first; costs
+//! and rates are measured after the burn-in. In an online window the sensor follows the flag-ACKs it receives and records, for each
+//! one, its gap since the previous (the count and the interval tests read nothing else); at the
+//! window's end it applies its test, and an alarm that triggers the fall-back (any alarm, or only
+//! one whose count is low enough, the "harmful" rule) makes it run the offline schedule, from
+//! the start of its period, for the next `fallback` windows, ignoring flag-ACKs, then return
+//! online. Windows are not tested while offline. The remote detector and the attacker do not
+//! know which schedule the sensor runs: the detector keeps its memory of ACKs and sends flags,
+//! the attacker keeps counting, blocking and forging them, in every window.
+//!
+//! Per step: the sensor's power (online: high iff a flag-ACK reached it last step; offline: the
+//! pattern), the arrival (always at high power, with probability λ at low), the holding time τ
+//! and Tr P_k = Tr h^τ(P̄), the detector's zero count z (reset by an arrival; a flag sent last step
+//! had reset the memory, so a loss makes z = 1), its flag (at z = z0 with probability μ, always
+//! at z0 + 1), the attacker's block (its counter's mask entry, or probability β) and forgery
+//! (probability γ on a step without a genuine flag). These are the rules of
+//! [`crate::general::capped_attack_chain`], which the tests compare with.
+//!
+//! # Engineering
+//! Runs advance in lock-step tiles of [`LANES`]; tile b draws from SplitMix64 sub-stream
+//! (seed, b), one xoshiro256++ generator per lane, so each run's result depends on the seed and
+//! its index only, not on threads or on how many runs follow. Each step takes one 64-bit output
+//! per lane and splits it into four 16-bit slices for the step's four possible draws (arrival,
+//! memory length, block, forgery); a slice equal to the top 16 bits of the exact threshold
+//! ⌊p 2^64⌋ (probability 2^-16) is resolved with 48 further bits, so every draw is exactly
+//! Bernoulli(⌊p 2^64⌋ / 2^64). Tiles run in parallel (rayon) and are collected in order; the
+//! cancel flag is polled at every window (and every [`CHECK_STEPS`] steps).
+//!
+//! Holding times index a table of Tr h^τ(P̄) of length min(burn_in + horizon + 1,
+//! [`MAX_TRACE_TABLE`]); a longer τ (only possible past 16384 steps without an arrival) reads its
+//! last entry.
+
+use std::hint::black_box;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use rayon::prelude::*;
+
+use crate::attack::Attack;
+use crate::error::{Error, Result};
+use crate::online::{check_lam, OnlineDesign};
+use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
+use crate::system::LinearSystem;
+
+/// Runs simulated in lock-step by one kernel call.
+pub const LANES: usize = 8;
+/// Most runs in one call (per-run results take 40 bytes each).
+pub const MAX_RUNS: u64 = 1 << 24;
+/// Longest table of Tr h^τ(P̄).
+pub const MAX_TRACE_TABLE: usize = 1 << 14;
+/// Most bins of the interval test.
+pub const MAX_BINS: usize = 1 << 12;
+/// Longest run in steps (burn-in included).
+pub const MAX_STEPS: u64 = 1 << 42;
+/// Steps between two polls of the cancel flag within a window.
+pub const CHECK_STEPS: u64 = 1 << 16;
+
+/// The sensor's test of one window, applied to the flag-ACKs that reached it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Detector {
+    /// The count test: alarm iff the window's count N satisfies `N <= lo` or `N >= hi`.
+    Count {
+        /// Largest count that is too low (-1: none).
+        lo: i64,
+        /// Smallest count that is too high (above the window length: none).
+        hi: i64,
+    },
+    /// The interval test: Pearson's X² = Σ (O_i - E_i)² / E_i over bins of gap lengths; alarm
+    /// iff X² > `critical`.
+    Interval {
+        /// Lower edges of the bins (steps), increasing from 1; the last bin is open above.
+        edges: Vec<u64>,
+        /// Expected flag-ACKs per bin in a window without attack (all positive).
+        expected: Vec<f64>,
+        /// The critical value.
+        critical: f64,
+    },
+}
+
+/// The sensor's policy in the repeated game.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Policy {
+    /// Online schedule, never tested.
+    Online,
+    /// Offline schedule throughout.
+    Offline,
+    /// Online, testing every online window; a triggering alarm means `fallback` offline windows.
+    Test {
+        /// The test.
+        detector: Detector,
+        /// Only alarms with a count N <= this bound trigger the fall-back (the "harmful" rule:
+        /// the estimated budget exceeds β̄); `None`: every alarm does.
+        harmful_at_most: Option<i64>,
+        /// Offline windows after a triggering alarm.
+        fallback: u64,
+    },
+}
+
+/// One closed-loop experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GameConfig {
+    /// Low-power arrival probability λ, in (0, 1).
+    pub lam: f64,
+    /// The online schedule's memory.
+    pub design: OnlineDesign,
+    /// The offline schedule's period (1 = high power), starting with a 1.
+    pub offline: Vec<u8>,
+    /// The attack (`None`: none). It runs in every window, online or not.
+    pub attack: Option<Attack>,
+    /// The sensor's policy.
+    pub policy: Policy,
+    /// Window length in steps, >= 1.
+    pub window: u64,
+    /// Measured steps per run, >= 1.
+    pub horizon: u64,
+    /// Steps played (policy, tests and fall-backs included) before the measured horizon, so that
+    /// the measurement starts near the game's stationary regime. Windows run from the first step;
+    /// a window's test counts in the results when the window ends after the burn-in.
+    pub burn_in: u64,
+    /// Independent runs, 1..=[`MAX_RUNS`].
+    pub runs: u64,
+    /// The results depend on this seed only.
+    pub seed: u64,
+}
+
+/// Per-run results, in run order.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct GameRuns {
+    /// Mean of Tr P_k over the measured horizon.
+    pub cost: Vec<f64>,
+    /// Fraction of measured steps at high power.
+    pub high_power: Vec<f64>,
+    /// Fraction of measured steps run online.
+    pub online: Vec<f64>,
+    /// Windows tested (online windows, for a testing policy).
+    pub tested: Vec<u64>,
+    /// Tested windows with an alarm.
+    pub alarms: Vec<u64>,
+    /// Alarms that triggered the fall-back.
+    pub fallbacks: Vec<u64>,
+    /// Flag-ACKs that reached the sensor during the measured horizon (online or not).
+    pub delivered: Vec<u64>,
+}
+
+mod plan;
+mod tile;
+
+use plan::Plan;
+use tile::{run_tile, Tile};
+
+impl GameConfig {
+    /// Checks every field; the messages name the field.
+    pub fn validate(&self) -> Result<()> {
+        check_lam(self.lam)?;
+        self.design.validate()?;
+        if let Some(a) = &self.attack {
+            a.validate()?;
+        }
+        if self.offline.is_empty() || self.offline[0] != 1 || self.offline.iter().any(|&g| g > 1) {
+            return Err(Error::invalid(
+                "offline",
+                "must be a non-empty 0/1 pattern starting with 1",
+            ));
+        }
+        if self.window < 1 {
+            return Err(Error::invalid("window", "must be at least 1"));
+        }
+        if self.horizon < 1 {
+            return Err(Error::invalid("horizon", "must be at least 1"));
+        }
+        if self.runs < 1 || self.runs > MAX_RUNS {
+            return Err(Error::invalid(
+                "runs",
+                format!("must lie in 1..={MAX_RUNS}, got {}", self.runs),
+            ));
+        }
+        if self.horizon.saturating_add(self.burn_in) > MAX_STEPS {
+            return Err(Error::invalid(
+                "horizon",
+                format!("burn_in + horizon must be at most {MAX_STEPS}"),
+            ));
+        }
+        if let Policy::Test {
+            detector:
+                Detector::Interval {
+                    edges,
+                    expected,
+                    critical,
+                },
+            ..
+        } = &self.policy
+        {
+            let increasing = edges.windows(2).all(|w| w[0] < w[1]);
+            if edges.is_empty() || edges[0] != 1 || !increasing || edges.len() > MAX_BINS {
+                return Err(Error::invalid(
+                    "edges",
+                    format!("must increase from 1, at most {MAX_BINS} bins"),
+                ));
+            }
+            if *edges.last().unwrap() > MAX_TRACE_TABLE as u64 * 64 {
+                return Err(Error::invalid("edges", "the last edge is too large"));
+            }
+            if expected.len() != edges.len()
+                || expected.iter().any(|&e| !(e.is_finite() && e > 0.0))
+            {
+                return Err(Error::invalid(
+                    "expected",
+                    "needs one positive finite value per bin",
+                ));
+            }
+            if critical.is_nan() {
+                return Err(Error::invalid("critical", "must not be NaN"));
+            }
+        }
+        Ok(())
+    }
+}
+
+impl LinearSystem {
+    /// The closed-loop game Monte Carlo (see the [module docs](crate::montecarlo::game)).
+    pub fn simulate_game(&self, cfg: &GameConfig) -> Result<GameRuns> {
+        self.simulate_game_with(cfg, &AtomicBool::new(false), &AtomicU64::new(0))
+    }
+
+    /// [`LinearSystem::simulate_game`] that stops with [`Error::Interrupted`] soon after
+    /// `cancel` is set and adds finished runs to `progress`.
+    pub fn simulate_game_with(
+        &self,
+        cfg: &GameConfig,
+        cancel: &AtomicBool,
+        progress: &AtomicU64,
+    ) -> Result<GameRuns> {
+        let plan = Plan::new(self, cfg)?;
+        let tiles = cfg.runs.div_ceil(LANES as u64);
+        let done: Vec<Tile> = (0..tiles)
+            .into_par_iter()
+            .map(|b| {
+                let t = run_tile(&plan, b, cancel)?;
+                progress.fetch_add(LANES as u64, Ordering::Relaxed);
+                Ok(t)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let runs = cfg.runs as usize;
+        let h = cfg.horizon as f64;
+        let mut out = GameRuns::default();
+        for t in &done {
+            for l in 0..LANES {
+                if out.cost.len() == runs {
+                    break;
+                }
+                out.cost.push(t.cost[l] / h);
+                out.high_power.push(t.high[l] as f64 / h);
+                out.online.push(t.online_steps[l] as f64 / h);
+                out.tested.push(t.tested[l]);
+                out.alarms.push(t.alarms[l]);
+                out.fallbacks.push(t.fallbacks[l]);
+                out.delivered.push(t.delivered[l]);
+            }
+        }
+        Ok(out)
+    }
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,285 @@
+//! The lock-step kernel: a tile of [`LANES`] runs advanced step by step, their window tests and
+//! mode switches.
+
+use super::plan::*;
+use super::*;
+
+/// The state of a tile's runs.
+pub(super) struct Tile {
+    pub(super) rng: [Xoshiro256pp; LANES],
+    pub(super) tau: [usize; LANES],
+    pub(super) z: [u64; LANES],
+    pub(super) sigma: [u64; LANES],
+    pub(super) pending: [bool; LANES],
+    pub(super) flagged: [bool; LANES],
+    pub(super) gap: [usize; LANES],
+    pub(super) online: [bool; LANES],
+    pub(super) left: [u64; LANES],
+    pub(super) pos: [usize; LANES],
+    pub(super) count: [i64; LANES],
+    pub(super) bins: Vec<[u32; LANES]>,
+    pub(super) cost: [f64; LANES],
+    pub(super) window_cost: [f64; LANES],
+    pub(super) high: [u64; LANES],
+    pub(super) online_steps: [u64; LANES],
+    pub(super) delivered: [u64; LANES],
+    pub(super) tested: [u64; LANES],
+    pub(super) alarms: [u64; LANES],
+    pub(super) fallbacks: [u64; LANES],
+}
+
+impl Tile {
+    pub(super) fn new(plan: &Plan<'_>, index: u64) -> Self {
+        let mut sm = SplitMix64::stream(plan.cfg.seed, index);
+        let rng = std::array::from_fn(|_| Xoshiro256pp::from_splitmix(&mut sm));
+        let offline = matches!(plan.cfg.policy, Policy::Offline);
+        Tile {
+            rng,
+            tau: [0; LANES],
+            z: [0; LANES],
+            sigma: [0; LANES],
+            // The paper's initial condition: high power at k = 1, as after a flag-ACK.
+            pending: [true; LANES],
+            flagged: [false; LANES],
+            gap: [0; LANES],
+            online: [!offline; LANES],
+            left: [0; LANES],
+            pos: [0; LANES],
+            count: [0; LANES],
+            bins: vec![[0; LANES]; plan.bins],
+            cost: [0.0; LANES],
+            window_cost: [0.0; LANES],
+            high: [0; LANES],
+            online_steps: [0; LANES],
+            delivered: [0; LANES],
+            tested: [0; LANES],
+            alarms: [0; LANES],
+            fallbacks: [0; LANES],
+        }
+    }
+
+    /// `steps` steps of every lane, by the kernel instantiated for the plan's features.
+    pub(super) fn advance(&mut self, plan: &Plan<'_>, steps: u64) {
+        let mu = plan.cfg.design.mu < 1.0;
+        let bins = plan.bins > 0;
+        macro_rules! go {
+            ($rule:expr) => {
+                match (mu, plan.forging, bins) {
+                    (false, false, false) => {
+                        self.kernel::<false, false, false, { $rule }>(plan, steps)
+                    }
+                    (false, false, true) => {
+                        self.kernel::<false, false, true, { $rule }>(plan, steps)
+                    }
+                    (false, true, false) => {
+                        self.kernel::<false, true, false, { $rule }>(plan, steps)
+                    }
+                    (false, true, true) => self.kernel::<false, true, true, { $rule }>(plan, steps),
+                    (true, false, false) => {
+                        self.kernel::<true, false, false, { $rule }>(plan, steps)
+                    }
+                    (true, false, true) => self.kernel::<true, false, true, { $rule }>(plan, steps),
+                    (true, true, false) => self.kernel::<true, true, false, { $rule }>(plan, steps),
+                    (true, true, true) => self.kernel::<true, true, true, { $rule }>(plan, steps),
+                }
+            };
+        }
+        match plan.block {
+            Block::None => go!(RULE_NONE),
+            Block::FirstR { .. } => go!(RULE_FIRST_R),
+            Block::Mask(_) => go!(RULE_MASK),
+            Block::Random(_) => go!(RULE_RANDOM),
+        }
+    }
+
+    /// The step loop, branch-free except for the rare ties of the Bernoulli slices: `MU` (a
+    /// memory-length draw), `FORGE` (forged flags), `BINS` (the interval test's histogram) and
+    /// `RULE` (the attacker's blocking rule) are compile-time, so each plan runs only its code.
+    #[inline(never)]
+    pub(super) fn kernel<const MU: bool, const FORGE: bool, const BINS: bool, const RULE: u8>(
+        &mut self,
+        plan: &Plan<'_>,
+        steps: u64,
+    ) {
+        let offline = &plan.cfg.offline[..];
+        let period = offline.len();
+        let traces = &plan.traces[..];
+        let last = traces.len() - 1;
+        let bin_of = &plan.bin_of[..];
+        let gap_last = bin_of.len().saturating_sub(1);
+        let z0 = plan.z0;
+        let (first_r, period_t, mask): (u64, u64, &[bool]) = match &plan.block {
+            Block::FirstR { r, t } => (*r, *t, &[]),
+            Block::Mask(m) => (0, m.len() as u64, &m[..]),
+            _ => (0, 1, &[]),
+        };
+        let beta = match plan.block {
+            Block::Random(b) => b,
+            _ => Bern::new(0.0),
+        };
+        for _ in 0..steps {
+            for l in 0..LANES {
+                let rng = &mut self.rng[l];
+                let w = rng.next_u64();
+                let online = self.online[l];
+                let pos = self.pos[l];
+                let high = (online & self.pending[l]) | (!online & (offline[pos] != 0));
+                let next_pos = pos + 1;
+                self.pos[l] = if online | (next_pos == period) {
+                    0
+                } else {
+                    next_pos
+                };
+                let arrive = high | plan.lam.draw(w & 0xffff, rng);
+                // Masks instead of selects: the outcomes are coin flips, and a mispredicted branch
+                // costs more than the whole step. `black_box` keeps LLVM from turning the
+                // masked arithmetic back into branches.
+                let keep = black_box(usize::from(!arrive).wrapping_neg()); // ones iff no arrival
+                let tau = (self.tau[l] + 1) & keep;
+                self.tau[l] = tau;
+                self.window_cost[l] += traces[tau.min(last)];
+                self.high[l] += u64::from(high);
+                self.online_steps[l] += u64::from(online);
+                let reset = black_box(u64::from(self.flagged[l]).wrapping_neg()); // ones iff flagged
+                let z = (((self.z[l] + 1) & !reset) | (reset & 1)) & (keep as u64);
+                self.z[l] = z;
+                let mu_draw = if MU {
+                    plan.mu.draw((w >> 16) & 0xffff, rng)
+                } else {
+                    true
+                };
+                let flag = (z > z0) | ((z == z0) & mu_draw);
+                let sigma = self.sigma[l];
+                let blocked = match RULE {
+                    RULE_FIRST_R => sigma < first_r,
+                    RULE_MASK => mask[sigma as usize],
+                    RULE_RANDOM => beta.draw((w >> 32) & 0xffff, rng),
+                    _ => false,
+                };
+                if RULE == RULE_FIRST_R || RULE == RULE_MASK {
+                    let next = sigma + u64::from(flag);
+                    self.sigma[l] = if next == period_t { 0 } else { next };
+                }
+                let forged = FORGE & !flag & plan.gamma.draw(w >> 48, rng);
+                let delivered = (flag & !blocked) | forged;
+                self.flagged[l] = flag;
+                self.pending[l] = delivered;
+                let gap = self.gap[l] + 1;
+                self.delivered[l] += u64::from(delivered);
+                let counted = delivered & online;
+                self.count[l] += i64::from(counted);
+                if BINS {
+                    self.bins[bin_of[gap.min(gap_last)] as usize][l] += u32::from(counted);
+                }
+                self.gap[l] = gap & black_box(usize::from(!delivered).wrapping_neg());
+            }
+        }
+    }
+
+    /// The end of a window: the online lanes' tests and the mode switches; the window's test is
+    /// counted in the results when `counted` (it ends after the burn-in).
+    pub(super) fn end_window(&mut self, plan: &Plan<'_>, counted: bool) {
+        let c = u64::from(counted);
+        for l in 0..LANES {
+            self.cost[l] += self.window_cost[l];
+            self.window_cost[l] = 0.0;
+            if let Policy::Test {
+                detector,
+                harmful_at_most,
+                fallback,
+            } = &plan.cfg.policy
+            {
+                if self.online[l] {
+                    let n = self.count[l];
+                    let alarm = match detector {
+                        Detector::Count { lo, hi } => n <= *lo || n >= *hi,
+                        Detector::Interval {
+                            expected, critical, ..
+                        } => {
+                            let x2: f64 = expected
+                                .iter()
+                                .zip(&self.bins)
+                                .map(|(e, o)| {
+                                    let d = f64::from(o[l]) - e;
+                                    d * d / e
+                                })
+                                .sum();
+                            x2 > *critical
+                        }
+                    };
+                    self.tested[l] += c;
+                    self.alarms[l] += c * u64::from(alarm);
+                    if alarm && harmful_at_most.is_none_or(|b| n <= b) {
+                        self.fallbacks[l] += c;
+                        if *fallback > 0 {
+                            self.online[l] = false;
+                            self.left[l] = *fallback;
+                            self.pos[l] = 0;
+                        }
+                    }
+                } else {
+                    self.left[l] -= 1;
+                    if self.left[l] == 0 {
+                        self.online[l] = true;
+                    }
+                }
+            }
+            self.count[l] = 0;
+            for b in &mut self.bins {
+                b[l] = 0;
+            }
+        }
+    }
+
+    /// Forgets the costs and rates the burn-in accumulated (the current window's flags stay: its
+    /// test reads the whole window).
+    pub(super) fn start_measuring(&mut self) {
+        self.cost = [0.0; LANES];
+        self.window_cost = [0.0; LANES];
+        self.high = [0; LANES];
+        self.online_steps = [0; LANES];
+        self.delivered = [0; LANES];
+    }
+}
+
+pub(super) fn run_tile(plan: &Plan<'_>, index: u64, cancel: &AtomicBool) -> Result<Tile> {
+    let cfg = plan.cfg;
+    let mut tile = Tile::new(plan, index);
+    let chunked = |tile: &mut Tile, steps: u64| -> Result<()> {
+        let mut left = steps;
+        while left > 0 {
+            if cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
+            }
+            let n = left.min(CHECK_STEPS);
+            tile.advance(plan, n);
+            left -= n;
+        }
+        Ok(())
+    };
+    // Windows run from the first step; the measurement starts after the burn-in, which may end
+    // inside a window.
+    let total = cfg.burn_in + cfg.horizon;
+    let mut at = 0u64;
+    let mut measuring = cfg.burn_in == 0;
+    while at < total {
+        let end = (at + cfg.window).min(total);
+        if !measuring && end > cfg.burn_in {
+            chunked(&mut tile, cfg.burn_in - at)?;
+            tile.start_measuring();
+            measuring = true;
+            chunked(&mut tile, end - cfg.burn_in)?;
+        } else {
+            chunked(&mut tile, end - at)?;
+        }
+        if end - at == cfg.window {
+            tile.end_window(plan, end > cfg.burn_in);
+        } else {
+            for l in 0..LANES {
+                tile.cost[l] += tile.window_cost[l];
+            }
+        }
+        at = end;
+    }
+    Ok(tile)
+}
