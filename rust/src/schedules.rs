@@ -186,6 +186,8 @@ mod tests {
     fn ratio_is_reduced_and_checked() {
         assert_eq!(ratio(2, 14), ratio(1, 7));
         assert_eq!(ratio(2, 14).to_string(), "1/7");
+        let r = ratio(6, 21);
+        assert_eq!((r.p(), r.q(), r.value()), (2, 7, 2.0 / 7.0));
         for (p, q) in [(0, 7), (7, 7), (8, 7), (1, 0)] {
             let e = Ratio::new(p, q).unwrap_err();
             assert!(e.to_string().starts_with("ratio:"), "{e}");
