@@ -202,6 +202,33 @@ impl AttackChain {
 mod tests {
     use super::*;
 
+    /// Each CSR invariant on its own: one broken at a time is refused, naming `T` (kills a
+    /// validate that accepts everything, and any `&&` turned `||`).
+    #[test]
+    fn csr_validate_checks_every_invariant() {
+        let good = Csr {
+            n: 2,
+            indptr: vec![0, 1, 3],
+            indices: vec![1, 0, 1],
+            data: vec![1.0, 0.5, 0.5],
+        };
+        assert!(good.validate().is_ok());
+        let broken: [fn(&mut Csr); 6] = [
+            |c| c.indptr.push(3),         // n + 1 row pointers
+            |c| c.indptr = vec![1, 1, 3], // starts at 0
+            |c| c.indptr = vec![0, 4, 3], // never decreases
+            |c| c.indptr = vec![0, 1, 2], // ends at the number of entries
+            |c| c.data.push(0.0),         // data as long as indices
+            |c| c.indices[0] = 2,         // columns below n
+        ];
+        for (k, breaks) in broken.iter().enumerate() {
+            let mut c = good.clone();
+            breaks(&mut c);
+            let e = c.validate().expect_err(&format!("invariant {k}"));
+            assert!(e.to_string().starts_with("T:"), "{e}");
+        }
+    }
+
     /// The limit is inclusive: exactly MAX_BUILD_STATES states may be built, one more is refused
     /// (checked without allocating; kills `>` → `>=` in check_buildable).
     #[test]
