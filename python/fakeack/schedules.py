@@ -132,9 +132,10 @@ def _check_online(lam: Any, z0: Any, mu: Any) -> tuple[float, int, float]:
 
 
 def j_online(system: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
-    r"""Cost J of the ACK-based online schedule :math:`\theta_{\mathrm{on}}` (Theorem 4.5 of [1]_).
+    r"""Cost J of the ACK-based online schedule :math:`\theta_{\mathrm{on}}` (Theorem 4.5).
 
-    Corrected as in Model note 2, with :math:`a = 1-\lambda`:
+    Theorem 4.5 of the paper, after the online schedule of Han et al. [1]_, corrected as in
+    Model note 2, with :math:`a = 1-\lambda`:
 
     .. math::
        J = \frac{\lambda\big[\sum_{i=0}^{z_0} a^i\,\mathrm{tr}_i + (1-\mu)\,a^{z_0+1}
