@@ -14,7 +14,8 @@ Rows (cells per second; the median of ``--repeats`` runs):
   recomputing it. Timed on a random sample of ``--loop-cells`` cells of the 100 x 100 grid (the
   per-cell cost does not depend on the grid's size); checked to equal the grid's cells.
 * ``local``: ``fa.study_grid(..., executor=None)`` over 100 x 100 cells (this machine, all cores).
-* ``cluster``: the same on a ``dask.distributed.LocalCluster(n_workers=2, processes=True)`` that is
+* ``cluster``: the same on a ``dask.distributed.LocalCluster(n_workers=2, processes=True)`` (the
+  compiled core limited to one thread per worker with ``RAYON_NUM_THREADS=1``) that is
   started (and warmed up with one tiny study) before timing.
 * ``local 1e5`` / ``cluster 1e5``: 100 x 1000 cells, where the issue asks the cluster to stay within
   20% of the local time.
@@ -80,9 +81,9 @@ def time_loop(s: fa.LinearSystem, n_cells: int, repeats: int) -> tuple[float, li
 
 def clear_designs() -> None:
     """Forget the designs a previous run cached (in this process), so every run designs every cell."""
-    from fakeack._grid_design import design
+    from fakeack._grid_design import design_pq
 
-    design.cache_clear()
+    design_pq.cache_clear()
 
 
 def time_grid(
@@ -137,7 +138,13 @@ def main() -> None:
     from dask.distributed import Client, LocalCluster
 
     with (
-        LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster,
+        LocalCluster(
+            n_workers=2,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            env={"RAYON_NUM_THREADS": "1"},  # one core each, as `fakeack grid --workers 2` does
+        ) as cluster,
         Client(cluster) as client,
     ):
         fa.study_grid(s, *axes(3, 3), BETAS, executor=client, progress=False)  # warm the workers

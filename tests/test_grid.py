@@ -4,6 +4,7 @@ The executor, cluster and command-line interruption tests are in test_grid_clust
 """
 
 import concurrent.futures as cf
+import math
 import multiprocessing
 import os
 import random
@@ -427,5 +428,46 @@ def test_readme_slurm_example_builds_its_job_script(monkeypatch):
     try:
         script = cluster.job_script()
         assert "#SBATCH" in script and "dask_worker" in script.replace("-", "_")
+        assert "export RAYON_NUM_THREADS=1" in script  # one core per worker process
     finally:
         cluster.close()
+
+
+def test_compiled_exact_design_is_design_online_bit_for_bit():
+    """The compiled design of a study's cells equals fa.design_online, bit for bit, over random
+    and boundary (lam, p/q), including budgets spent exactly by a fixed memory (mu = 1) and
+    long memories; the cells it leaves (z0 = 0) are those without a design or beyond its range.
+    Kills: a truncating (not nearest-even) rounding of mu, an off-by-one memory search."""
+    from fakeack import _fakeack
+
+    rng = random.Random(11)
+    cases = [(0.5, 1, 7), (0.5, 1, 5), (0.5, 1, 3), (0.5, 1, 2), (0.1, 1, 1000), (0.9, 1, 2)]
+    # Budgets spent exactly by z0 at lam = 1/2: f(z, 1) = 1 / (2^(z+1) - 1).
+    cases += [(0.5, 1, 2 ** (z + 1) - 1) for z in range(1, 30)]
+    for _ in range(3000):
+        lam = rng.choice([rng.random(), rng.randint(1, 999) / 1000, 10 ** rng.uniform(-6, -0.01)])
+        q = rng.choice([rng.randint(2, 50), rng.randint(2, 10**6)])
+        p = rng.randint(1, q - 1)
+        g = math.gcd(p, q)
+        cases.append((lam, p // g, q // g))
+    lam = np.array([c[0] for c in cases])
+    p = np.array([c[1] for c in cases], dtype=np.uint64)
+    q = np.array([c[2] for c in cases], dtype=np.uint64)
+    parts = [Fraction(x).limit_denominator(10**9) for x in lam]
+    parts = [f if float(f) == x else Fraction(0) for f, x in zip(parts, lam, strict=True)]
+    num = np.array([f.numerator for f in parts], dtype=np.uint64)
+    den = np.array([f.denominator if f else 0 for f in parts], dtype=np.uint64)
+    z0, mu = _fakeack.grid_designs(lam, num, den, p, q)
+    decided = 0
+    for i, (x, pp, qq) in enumerate(cases):
+        try:
+            ref = fa.design_online(x, Fraction(pp, qq))
+        except ValueError:
+            assert z0[i] == 0, cases[i]
+            continue
+        if z0[i] == 0:
+            assert ref[0] > 1000, cases[i]  # only very long memories are left to Python
+            continue
+        decided += 1
+        assert (int(z0[i]), mu[i].hex()) == (ref[0], float(ref[1]).hex()), cases[i]
+    assert decided > 1000

@@ -19,6 +19,7 @@ __all__ = [
     "flag_rates",
     "general_attack_chain",
     "grid_cells",
+    "grid_designs",
     "high_power_rate",
     "num_states",
     "offline_schedule",
@@ -142,6 +143,13 @@ def grid_cells(
     t_max: int,
     attacks: list[Attack],
 ) -> dict[str, Any]: ...
+def grid_designs(
+    lam: npt.NDArray[np.float64],
+    lam_num: npt.NDArray[np.uint64],
+    lam_den: npt.NDArray[np.uint64],
+    p: npt.NDArray[np.uint64],
+    q: npt.NDArray[np.uint64],
+) -> tuple[npt.NDArray[np.uint64], npt.NDArray[np.float64]]: ...
 def simulate_game(
     system: LinearSystem,
     lam: float,

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from . import _fakeack
-from ._grid_design import design
+from ._grid_design import _lam_parts, design_pq
 from .attacks import MaskBlocking, PeriodicBlocking, RandomBlocking
 from .montecarlo import OnlineSchedule, simulate
 from .system import LinearSystem
@@ -103,23 +103,29 @@ def run_block(block: Block) -> dict[str, Any]:
     n = nl * nr
     lam = np.repeat(np.asarray(block.lam, dtype=np.float64), nr)
     ratios = list(block.ratio) * nl
-    z0 = np.zeros(n, dtype=np.uint64)
-    mu = np.full(n, np.nan)
     status = np.full(n, "ok", dtype=object)
-    for i in range(n):
+    p = np.array([r.numerator for r in ratios], dtype=np.uint64)
+    q = np.array([r.denominator for r in ratios], dtype=np.uint64)
+    # The exact design in the compiled core (the same bits as fakeack.design_online); the cells it
+    # leaves (no design, very long memories) take the Python path, which raises its own errors.
+    # λ as fakeack reads a float: the simplest fraction that rounds to it, else its binary value.
+    parts = [_lam_parts(float(x)) for x in block.lam]
+    simple = [(n, d) if d <= 10**9 else (0, 0) for n, d in parts]
+    lam_num = np.repeat(np.array([n for n, _ in simple], dtype=np.uint64), nr)
+    lam_den = np.repeat(np.array([d for _, d in simple], dtype=np.uint64), nr)
+    z0, mu = _fakeack.grid_designs(lam, lam_num, lam_den, p, q)
+    for i in np.flatnonzero(z0 == 0).tolist():
         try:
-            z, m = design(float(lam[i]), ratios[i])
+            z0[i], mu[i] = design_pq(float(lam[i]), int(p[i]), int(q[i]))
         except ValueError as exc:
             status[i] = f"no online design: {exc}"
-            continue
-        z0[i], mu[i] = z, m
     listed = [_core_attack(b) for b in block.beta] if block.montecarlo and block.family == "periodic" else []
     out = _fakeack.grid_cells(
         [block.system._core],
         np.zeros(n, dtype=np.uint64),
         lam,
-        np.array([r.numerator for r in ratios], dtype=np.uint64),
-        np.array([r.denominator for r in ratios], dtype=np.uint64),
+        p,
+        q,
         z0,
         np.where(np.isnan(mu), 1.0, mu),
         [float(b) for b in block.beta],

@@ -18,13 +18,14 @@ hundreds, which matters when a study designs 10^4-10^6 (lam, ratio) pairs.
 
 from __future__ import annotations
 
+import math
 from fractions import Fraction
 from functools import lru_cache
 
 from ._validate import as_fraction
-from .schedules import EXACT_DESIGN_Z0, OnlineDesign, _largest_z_float, design_online
+from .schedules import EXACT_DESIGN_Z0, OnlineDesign, design_online
 
-__all__ = ["design"]
+__all__ = ["design", "design_pq"]
 
 
 @lru_cache(maxsize=4096)
@@ -41,20 +42,33 @@ def _meets(n: int, d: int, p: int, q: int, z: int) -> bool:
     return q * n * mz >= p * (d ** (z + 1) - mz * m)
 
 
-@lru_cache(maxsize=1 << 16)
+def _largest_z_estimate(lam: float, rho: float) -> int | None:
+    """The largest z with f(z, 1) >= rho, within one: f(z, 1) >= rho iff a^z (lam + rho a) >= rho,
+    so z <= ln(rho / (lam + rho a)) / ln a, in closed form (the exact walk that follows settles
+    the last step). None when the bound is out of range."""
+    bound = math.log(rho / (lam + rho * (1.0 - lam))) / math.log1p(-lam)
+    return int(bound) if math.isfinite(bound) and bound < 2**40 else None
+
+
 def design(lam: float, ratio: Fraction) -> OnlineDesign:
     """:func:`fakeack.design_online` ``(lam, ratio)`` for a float ``lam`` in (0, 1) and a ratio in
     lowest terms, bit for bit; raises its ``ValueError`` where it does.
     """
+    return design_pq(lam, ratio.numerator, ratio.denominator)
+
+
+# Keyed on plain numbers: hashing a Fraction costs more than the design of a cached pair.
+@lru_cache(maxsize=1 << 18)
+def design_pq(lam: float, p: int, q: int) -> OnlineDesign:
+    """:func:`design` for the ratio p/q in lowest terms."""
     n, d = _lam_parts(lam)
-    p, q = ratio.numerator, ratio.denominator
     m = d - n
     # design_online's first check: the budget exceeds f(1, 1) = lam a / (1 - a^2).
     if p * (d * d - m * m) > q * n * m:
-        return design_online(lam, ratio)
-    z0 = _largest_z_float(lam, float(ratio))
-    if z0 > EXACT_DESIGN_Z0:
-        return design_online(lam, ratio)
+        return design_online(lam, Fraction(p, q))
+    z0 = _largest_z_estimate(lam, p / q)
+    if z0 is None or z0 > EXACT_DESIGN_Z0:
+        return design_online(lam, Fraction(p, q))
     z0 = max(1, z0 - 1)
     while _meets(n, d, p, q, z0 + 1):
         z0 += 1

@@ -301,9 +301,14 @@ fn shared_cell(sys: &LinearSystem, cell: &Cell, study: &Study, sh: &Shared) -> R
     out.j_online = schedules::j_online(&sh.w_cost[..z0 + 2], lam, design)?;
     // LinearSystem::beta_bar: segments 0..t_max-1 of the walk.
     let walk = Walk::new(lam, design, 0.0)?;
-    let seg = Segments::of_walk_with_masses(sh.walk_traces(), &sh.masses, &walk, study.t_max - 1)?;
-    out.beta_bar_finite = sweep::first_crossing(&seg, study.t_max, out.j_offline)?;
+    let build = |k| Segments::of_walk_with_masses(sh.walk_traces(), &sh.masses, &walk, k);
+    let seg = build(0)?;
     out.beta_bar_limit = pattern::beta_limit_threshold(&seg, lam, sh.j_max, out.j_offline);
+    // The segments up to the crossing only (the same answer as the full sweep): the finite
+    // threshold is usually a little above the limit's, so the visit starts at that depth.
+    let start = (out.beta_bar_limit * study.t_max as f64).ceil() as u64; // NaN: 0
+    let start = start.saturating_add(2);
+    out.beta_bar_finite = sweep::first_crossing_by_depth(build, study.t_max, out.j_offline, start)?;
     // Segment 0 (all that j_attack_limit builds) is the same whatever the depth.
     match study.family {
         Family::Periodic => {

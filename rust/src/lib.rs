@@ -53,6 +53,7 @@ pub mod analysis;
 pub mod attack;
 pub mod chain;
 pub mod error;
+pub mod exact_design;
 pub mod general;
 pub mod grid;
 mod linalg;

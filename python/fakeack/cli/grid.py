@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import os
 import sys
 import time
 from collections import Counter
@@ -37,9 +38,16 @@ def _executor(args: argparse.Namespace) -> Iterator[Any]:
         with Client(args.scheduler) as client:
             yield client
         return
+    # Each worker process gets its share of the cores for the compiled core's threads: left to
+    # its default, every process would start one thread per core and oversubscribe them.
+    threads = max(1, (os.cpu_count() or 1) // args.workers)
     with (
         LocalCluster(
-            n_workers=args.workers, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=args.workers,
+            threads_per_worker=1,
+            processes=True,
+            dashboard_address=None,
+            env={"RAYON_NUM_THREADS": str(threads)},
         ) as cluster,
         Client(cluster) as client,
     ):

@@ -1,13 +1,14 @@
 //! Parameter studies: one block of cells of `fakeack.study_grid` ([`crate::grid`]).
 
 use numpy::ndarray::Array2;
-use numpy::{IntoPyArray, PyReadonlyArray1};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use super::system::PySystem;
 use super::PyAttack;
+use crate::exact_design::{design_exact, Lam};
 use crate::grid::{self, Cell, CellResult, Family, Study};
 use crate::{LinearSystem, OnlineDesign, Ratio};
 
@@ -126,4 +127,45 @@ pub(crate) fn grid_cells<'py>(
         .collect();
     d.set_item("error", errors)?;
     Ok(d)
+}
+
+/// The exact online design of each (λ, p/q) ([`crate::exact_design::design_exact`]), in
+/// parallel with the GIL released. λ is read as the fraction `lam_num / lam_den` (or, where
+/// `lam_den` is 0, as the float's exact binary value), as the Python package reads it. Returns
+/// `(z0, mu)` arrays, `z0 == 0` where the Python package's exact path must decide.
+#[pyfunction]
+pub(crate) fn grid_designs<'py>(
+    py: Python<'py>,
+    lam: PyReadonlyArray1<'py, f64>,
+    lam_num: PyReadonlyArray1<'py, u64>,
+    lam_den: PyReadonlyArray1<'py, u64>,
+    p: PyReadonlyArray1<'py, u64>,
+    q: PyReadonlyArray1<'py, u64>,
+) -> PyResult<(Bound<'py, PyArray1<u64>>, Bound<'py, PyArray1<f64>>)> {
+    let [lam_num, lam_den, p, q] = [lam_num, lam_den, p, q].map(|a| a.as_array().to_vec());
+    let lam = lam.as_array().to_vec();
+    if [lam_num.len(), lam_den.len(), p.len(), q.len()]
+        .iter()
+        .any(|&l| l != lam.len())
+    {
+        return Err(PyValueError::new_err(
+            "cells: lam, lam_num, lam_den, p and q must have the same length",
+        ));
+    }
+    let out: Vec<(u64, f64)> = py.detach(|| {
+        use rayon::prelude::*;
+        (0..lam.len())
+            .into_par_iter()
+            .with_min_len(64)
+            .map(|i| {
+                let l = Lam {
+                    value: lam[i],
+                    fraction: (lam_den[i] > 0).then_some((lam_num[i], lam_den[i])),
+                };
+                design_exact(l, p[i], q[i]).unwrap_or((0, f64::NAN))
+            })
+            .collect()
+    });
+    let (z0, mu): (Vec<u64>, Vec<f64>) = out.into_iter().unzip();
+    Ok((z0.into_pyarray(py), mu.into_pyarray(py)))
 }

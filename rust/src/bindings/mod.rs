@@ -143,6 +143,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(raise_core_error, m)?)?;
     m.add_function(wrap_pyfunction!(grid::grid_cells, m)?)?;
+    m.add_function(wrap_pyfunction!(grid::grid_designs, m)?)?;
     m.add_function(wrap_pyfunction!(game::simulate_game, m)?)?;
     m.add_function(wrap_pyfunction!(chains::stationary_gth, m)?)?;
     m.add_function(wrap_pyfunction!(chains::balance_residual, m)?)?;
