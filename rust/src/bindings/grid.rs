@@ -129,6 +129,9 @@ pub(crate) fn grid_cells<'py>(
     Ok(d)
 }
 
+/// The memories and mixes of [`grid_designs`].
+type Designs<'py> = (Bound<'py, PyArray1<u64>>, Bound<'py, PyArray1<f64>>);
+
 /// The exact online design of each (λ, p/q) ([`crate::exact_design::design_exact`]), in
 /// parallel with the GIL released. λ is read as the fraction `lam_num / lam_den` (or, where
 /// `lam_den` is 0, as the float's exact binary value), as the Python package reads it. Returns
@@ -141,7 +144,7 @@ pub(crate) fn grid_designs<'py>(
     lam_den: PyReadonlyArray1<'py, u64>,
     p: PyReadonlyArray1<'py, u64>,
     q: PyReadonlyArray1<'py, u64>,
-) -> PyResult<(Bound<'py, PyArray1<u64>>, Bound<'py, PyArray1<f64>>)> {
+) -> PyResult<Designs<'py>> {
     let [lam_num, lam_den, p, q] = [lam_num, lam_den, p, q].map(|a| a.as_array().to_vec());
     let lam = lam.as_array().to_vec();
     if [lam_num.len(), lam_den.len(), p.len(), q.len()]
