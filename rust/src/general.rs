@@ -270,5 +270,21 @@ mod tests {
         let all = Attack::mask(vec![true, true]).unwrap();
         let design = OnlineDesign::fixed(2).unwrap();
         assert!(general_attack_chain(0.5, design, &all).is_err());
+        assert!(general_attack_chain(0.5, design, &Attack::Random { beta: 0.3 }).is_err());
+    }
+
+    /// Independent blocking with β = 0 blocks nothing: a finite chain, the unattacked one
+    /// (kills refusing every independent attack, `beta > 0` turned `>=`).
+    #[test]
+    fn random_blocking_of_nothing_is_the_unattacked_chain() {
+        let design = OnlineDesign::fixed(2).unwrap();
+        let none = Attack::Random { beta: 0.0 };
+        let (states, t) = general_attack_chain(0.5, design, &none).unwrap();
+        // (τ, z): (0, 0) -> (1, 1) -> (2, 2), whose flag brings the next arrival.
+        assert_eq!(states.len(), 3);
+        assert_eq!(t.n, 3);
+        let unattacked = Attack::mask(vec![false]).unwrap();
+        let (states_u, t_u) = general_attack_chain(0.5, design, &unattacked).unwrap();
+        assert_eq!((states, t), (states_u, t_u));
     }
 }
