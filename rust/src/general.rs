@@ -125,13 +125,14 @@ pub fn capped_attack_chain(
         }
         out
     };
-    explore(succ)
+    explore(succ, MAX_GENERAL_STATES)
 }
 
 /// Breadth-first exploration from [`START`] with the successor function `succ`: the states in
 /// discovery order and the row-stochastic CSR matrix of their transitions.
 fn explore(
     succ: impl Fn(GeneralState) -> Vec<(GeneralState, f64)>,
+    limit: u128,
 ) -> Result<(Vec<GeneralState>, Csr)> {
     let mut index: HashMap<GeneralState, usize> = HashMap::new();
     let mut states = vec![START];
@@ -147,11 +148,11 @@ fn explore(
             let j = match index.get(&s) {
                 Some(&j) => j,
                 None => {
-                    if states.len() as u128 >= MAX_GENERAL_STATES {
+                    if states.len() as u128 >= limit {
                         return Err(Error::TooLarge {
                             arg: "(z0, mask)".into(),
                             requested: states.len() as u128 + 1,
-                            limit: MAX_GENERAL_STATES,
+                            limit,
                         });
                     }
                     states.push(s);
@@ -271,6 +272,22 @@ mod tests {
         let design = OnlineDesign::fixed(2).unwrap();
         assert!(general_attack_chain(0.5, design, &all).is_err());
         assert!(general_attack_chain(0.5, design, &Attack::Random { beta: 0.3 }).is_err());
+    }
+
+    /// The state limit is inclusive and the error names the first state over it (kills a wrong
+    /// count in the message): a walk τ = 0, 1, 2, ... restarting at `len` has `len` states.
+    #[test]
+    fn exploration_limit_is_inclusive() {
+        let walk = |len: u64| {
+            move |s: GeneralState| {
+                let next = if s.tau + 1 == len { 0 } else { s.tau + 1 };
+                vec![(GeneralState { tau: next, ..s }, 1.0)]
+            }
+        };
+        let (states, _) = explore(walk(5), 5).unwrap();
+        assert_eq!(states.len(), 5);
+        let e = explore(walk(6), 5).unwrap_err().to_string();
+        assert!(e.contains('6') && e.contains('5'), "{e}");
     }
 
     /// Independent blocking with β = 0 blocks nothing: a finite chain, the unattacked one

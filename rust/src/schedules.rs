@@ -92,10 +92,8 @@ pub struct OfflineBlocks {
 /// Largest period q accepted for an explicit offline schedule (one byte per step).
 pub const MAX_PERIOD: u64 = 1 << 32;
 
-/// One period of the optimal offline schedule: `m` blocks `1 0^(s0+1)` then `n` blocks `1 0^s0`.
-pub fn offline_schedule(ratio: Ratio) -> Result<Vec<u8>> {
-    let OfflineBlocks { s0, long, short } = ratio.offline_blocks();
-    let q = ratio.q();
+/// A period of `q` steps may be written out (at most [`MAX_PERIOD`]), checked before allocating.
+fn check_period(q: u64) -> Result<()> {
     if q > MAX_PERIOD {
         return Err(Error::TooLarge {
             arg: "ratio".into(),
@@ -103,6 +101,14 @@ pub fn offline_schedule(ratio: Ratio) -> Result<Vec<u8>> {
             limit: MAX_PERIOD as u128,
         });
     }
+    Ok(())
+}
+
+/// One period of the optimal offline schedule: `m` blocks `1 0^(s0+1)` then `n` blocks `1 0^s0`.
+pub fn offline_schedule(ratio: Ratio) -> Result<Vec<u8>> {
+    let OfflineBlocks { s0, long, short } = ratio.offline_blocks();
+    let q = ratio.q();
+    check_period(q)?;
     let mut out = Vec::with_capacity(q as usize);
     for (count, len) in [(long, s0 + 2), (short, s0 + 1)] {
         for _ in 0..count {
@@ -180,6 +186,19 @@ mod tests {
 
     fn ratio(p: u64, q: u64) -> Ratio {
         Ratio::new(p, q).unwrap()
+    }
+
+    /// The period limit is inclusive, checked without allocating (kills `>` turned `>=` or
+    /// `==`): exactly MAX_PERIOD steps may be written, one more is refused naming both counts.
+    #[test]
+    fn period_limit_is_inclusive() {
+        assert!(check_period(MAX_PERIOD).is_ok());
+        let e = check_period(MAX_PERIOD + 1).unwrap_err().to_string();
+        assert!(
+            e.contains(&(MAX_PERIOD + 1).to_string()) && e.contains(&MAX_PERIOD.to_string()),
+            "{e}"
+        );
+        assert!(offline_schedule(ratio(1, MAX_PERIOD + 1)).is_err());
     }
 
     #[test]
