@@ -201,6 +201,14 @@ mod tests {
         assert!(offline_schedule(ratio(1, MAX_PERIOD + 1)).is_err());
     }
 
+    /// z0 + 2 weighted traces are enough for J_online, z0 + 1 are not (kills `<` turned `<=`).
+    #[test]
+    fn j_online_needs_exactly_z0_plus_two_traces() {
+        let design = OnlineDesign::new(2, 0.5).unwrap();
+        assert!(j_online(&[1.0; 4], 0.5, design).is_ok());
+        assert!(j_online(&[1.0; 3], 0.5, design).is_err());
+    }
+
     #[test]
     fn ratio_is_reduced_and_checked() {
         assert_eq!(ratio(2, 14), ratio(1, 7));

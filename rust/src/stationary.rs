@@ -31,9 +31,8 @@ pub fn pairwise_sum(x: &[f64]) -> f64 {
     }
 }
 
-/// Stationary law in the paper's state order, in O(|S|) without building the matrix.
-pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
-    let n = chain.num_states();
+/// A stationary vector of `n` states may be allocated (at most [`MAX_VECTOR_STATES`]).
+fn check_vector(n: u128) -> Result<()> {
     if n > MAX_VECTOR_STATES {
         return Err(Error::TooLarge {
             arg: "(z0, r, t)".into(),
@@ -41,6 +40,13 @@ pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
             limit: MAX_VECTOR_STATES,
         });
     }
+    Ok(())
+}
+
+/// Stationary law in the paper's state order, in O(|S|) without building the matrix.
+pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
+    let n = chain.num_states();
+    check_vector(n)?;
     let a = 1.0 - chain.lam;
     // Normaliser D = Σ c̃(σ-k) a^τ over all states: the renewal form's denominator.
     let mass: Vec<f64> = (0..=tau_needed(chain.z0, chain.r))
@@ -169,6 +175,44 @@ mod tests {
             }
             assert!((pairwise_sum(&fast) - 1.0).abs() < 1e-13);
             assert!(balance_residual(&c, &fast) < 1e-14);
+        }
+    }
+
+    /// The vector limit is inclusive, checked before allocating (kills `>` turned `>=`/`==`).
+    #[test]
+    fn vector_limit_is_inclusive() {
+        assert!(check_vector(MAX_VECTOR_STATES).is_ok());
+        let e = check_vector(MAX_VECTOR_STATES + 1).unwrap_err().to_string();
+        assert!(e.contains(&(MAX_VECTOR_STATES + 1).to_string()), "{e}");
+    }
+
+    /// The residual is ||π T - π||_1 itself: 0 for the stationary law; for the point mass on
+    /// state 0 of the paper's chain (z0 = 2, r = 1, t = 3, λ = 1/2) the mass moves to the
+    /// states (0, 0) and (1, 0) of the same level with 1/2 each, so ||π T - π||_1 = 1/2 + 1/2
+    /// = 1 (kills a constant residual).
+    #[test]
+    fn balance_residual_measures_the_imbalance() {
+        let c = AttackChain::new(0.5, 2, 1, 3).unwrap();
+        let pi = structured(&c).unwrap();
+        assert!(balance_residual(&c, &pi) < 1e-15);
+        let mut point = vec![0.0; pi.len()];
+        point[0] = 1.0;
+        assert!((balance_residual(&c, &point) - 1.0).abs() < 1e-15);
+    }
+
+    /// Negative, NaN or infinite entries and columns past n are refused, each on its own
+    /// (kills the entry check with `&&`/`||` swapped).
+    #[test]
+    fn gth_refuses_bad_entries() {
+        for (j, p) in [(1, -0.5), (1, f64::NAN), (1, f64::INFINITY), (2, 0.5)] {
+            let m = Csr {
+                n: 2,
+                indptr: vec![0, 2, 4],
+                indices: vec![0, j, 0, 1],
+                data: vec![0.5, p, 0.2, 0.8],
+            };
+            let e = gth(&m).unwrap_err().to_string();
+            assert!(e.starts_with("T:"), "{e}");
         }
     }
 

@@ -231,6 +231,13 @@ mod tests {
         }
         assert_eq!(farey_count(10_000), 30_397_485);
         assert!(farey_bound(10_000) >= 30_397_485);
+        // The bound is 0.31 n² + n (3/π² n² < 0.304 n² is the count's growth): exact values,
+        // and never below the count.
+        assert_eq!(farey_bound(1000), 311_000);
+        assert_eq!(farey_bound(7), 22);
+        for n in [2u64, 3, 10, 100, 1000] {
+            assert!(farey_bound(n) >= farey_count(n), "{n}");
+        }
     }
 
     #[test]
