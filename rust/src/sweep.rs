@@ -249,6 +249,9 @@ mod tests {
         let design = crate::online::OnlineDesign::fixed(2).unwrap();
         let seg = Segments::new(&w, lam, design, 60).unwrap();
         let s = sweep(&seg, 61).unwrap();
+        for i in 0..s.r.len() {
+            assert_eq!(s.beta[i], s.r[i] as f64 / s.t[i] as f64);
+        }
         for i in (0..s.r.len()).step_by(7) {
             let single = seg.j_first_r(s.r[i] as usize, s.t[i] as usize);
             assert!((s.j[i] - single).abs() <= 1e-13 * single);
@@ -257,6 +260,23 @@ mod tests {
         let first = first_crossing(&seg, 61, jref).unwrap().unwrap();
         let idx = s.j.iter().position(|&j| j >= jref).unwrap();
         assert_eq!(first, (s.r[idx], s.t[idx]));
+    }
+
+    /// t_max from 2 on; the first t_max whose Farey bound passes MAX_FRACTIONS (35,920) is
+    /// refused as too large before any segment is read (kills the size check's `||` turned
+    /// `&&` and `>` turned `==`, and `t_max < 2` turned `<=` or `==`).
+    #[test]
+    fn sweep_limits() {
+        let w: Vec<f64> = (0..40).map(|i| 0.5f64.powi(i)).collect();
+        let design = crate::online::OnlineDesign::fixed(2).unwrap();
+        let seg = Segments::new(&w, 0.5, design, 2).unwrap();
+        assert_eq!(sweep(&seg, 2).unwrap().r, vec![1]);
+        assert!(first_crossing(&seg, 2, 0.0).unwrap().is_some());
+        for bad in [0, 1] {
+            assert!(sweep(&seg, bad).is_err() && first_crossing(&seg, bad, 0.0).is_err());
+        }
+        assert!(farey_bound(35_919) <= MAX_FRACTIONS && farey_bound(35_920) > MAX_FRACTIONS);
+        assert!(matches!(sweep(&seg, 35_920), Err(Error::TooLarge { .. })));
     }
 
     /// Depth by depth gives the full sweep's crossing for every reference cost, start depth and

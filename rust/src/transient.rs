@@ -160,4 +160,31 @@ mod tests {
         assert_eq!(c[3], 1.0);
         assert!((c[4] - c[1]).abs() < 1e-15);
     }
+
+    /// The work limit is inclusive (horizon × transitions = MAX_WORK passes, one step more is
+    /// refused) and a zero horizon is refused (kills a check that accepts everything, `*` turned
+    /// `+` or `/`, `>` turned `>=` or `==`).
+    #[test]
+    fn horizon_limits() {
+        assert!(check_horizon(0, 5).is_err());
+        assert!(check_horizon(1, 5).is_ok());
+        let per = 1000usize;
+        let h = (MAX_WORK / per as u128) as usize;
+        assert!(check_horizon(h, per).is_ok());
+        let e = check_horizon(h + 1, per).unwrap_err().to_string();
+        assert!(e.contains(&(MAX_WORK + per as u128).to_string()), "{e}");
+    }
+
+    /// A table shorter than a run of low-power steps: the mass beyond it makes E Tr P_k
+    /// infinite until the next high-power step (kills `over` accumulated with `-` or `*`).
+    #[test]
+    fn mass_beyond_the_table_is_infinite() {
+        let tr = [1.0, 2.0];
+        let c = offline(&tr, 0.5, &[1, 0, 0, 0], 6).unwrap();
+        assert_eq!(c[0], 1.0);
+        assert!((c[1] - 1.5).abs() < 1e-15);
+        assert_eq!((c[2], c[3]), (f64::INFINITY, f64::INFINITY)); // τ = 2 has no trace
+        assert_eq!(c[4], 1.0);
+        assert!((c[5] - 1.5).abs() < 1e-15);
+    }
 }
