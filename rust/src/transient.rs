@@ -187,4 +187,24 @@ mod tests {
         assert_eq!(c[4], 1.0);
         assert!((c[5] - 1.5).abs() < 1e-15);
     }
+
+    /// One holding time per state, and at least one state (kills the check's `||` turned `&&`).
+    #[test]
+    fn chain_needs_one_holding_time_per_state() {
+        let two = Csr {
+            n: 2,
+            indptr: vec![0, 1, 2],
+            indices: vec![1, 0],
+            data: vec![1.0, 1.0],
+        };
+        assert!(chain(&two, &[0, 1], &[1.0, 2.0], 3).is_ok());
+        assert!(chain(&two, &[0], &[1.0, 2.0], 3).is_err());
+        let empty = Csr {
+            n: 0,
+            indptr: vec![0],
+            indices: vec![],
+            data: vec![],
+        };
+        assert!(chain(&empty, &[], &[1.0], 3).is_err());
+    }
 }
