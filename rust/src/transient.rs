@@ -207,4 +207,19 @@ mod tests {
         };
         assert!(chain(&empty, &[], &[1.0], 3).is_err());
     }
+
+    /// States not yet reached carry probability 0: their infinite trace must not make the
+    /// curve NaN (kills `p > 0` turned `>=`).
+    #[test]
+    fn chain_skips_unreached_infinite_traces() {
+        // A cycle 0 -> 1 -> 2 -> 0 with holding times 0, 1, 2; the table stops at τ = 1.
+        let cycle = Csr {
+            n: 3,
+            indptr: vec![0, 1, 2, 3],
+            indices: vec![1, 2, 0],
+            data: vec![1.0, 1.0, 1.0],
+        };
+        let c = chain(&cycle, &[0, 1, 2], &[1.0, 2.0], 3).unwrap();
+        assert_eq!(c, vec![1.0, 2.0, f64::INFINITY]);
+    }
 }
