@@ -37,11 +37,11 @@ def log_trace_lower_bound(A, pbar, tau):
     return 2 * tau * math.log(abs(A)) + math.log(pbar)
 
 
-# ---------------------------------------------------------------- j_offline (the issue's NaN)
+# ---------------------------------------------------------------- j_offline (a silent NaN, fixed)
 
 
 def test_j_offline_long_period_is_inf_not_nan(paper):
-    """The issue's case, formerly NaN: with p/q = 1/16384 there is no long block (m = 0), and
+    """The case that was NaN: with p/q = 1/16384 there is no long block (m = 0), and
     0 * (cost of the absent block) was 0 * inf. J is finite but beyond the double range:
     J >= a^τ Tr h^τ(P̄) / q at τ = q - 1 (one term of the only block)."""
     lam, q = 0.25, 16384
@@ -224,7 +224,7 @@ A_VALUES = st.sampled_from([0.5, 0.99, 1.2, 3.0, 30.0])
 
 
 @settings(max_examples=60 * FUZZ, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@example(A=1.2, lam=0.25, p=1, q=16384, z0=2, t=10_000, r=9999, mu=1.0)  # the issue's j_offline NaN
+@example(A=1.2, lam=0.25, p=1, q=16384, z0=2, t=10_000, r=9999, mu=1.0)  # j_offline's former NaN
 @example(A=1.2, lam=0.05, p=1, q=1024, z0=2, t=1000, r=999, mu=0.4)  # mixed memory past the overflow
 @example(A=1.2, lam=1e-6, p=1, q=2, z0=2, t=1000, r=999, mu=1.0)  # tiny λ
 @example(A=30.0, lam=0.5, p=1, q=1024, z0=1000, t=3, r=2, mu=1.0)  # J_on beyond range: J_inf(0) was NaN

@@ -201,12 +201,18 @@ mod tests {
         assert!(offline_schedule(ratio(1, MAX_PERIOD + 1)).is_err());
     }
 
-    /// z0 + 2 weighted traces are enough for J_online, z0 + 1 are not (kills `<` turned `<=`).
+    /// z0 + 2 weighted traces are enough for J_online, z0 + 1 are not; with μ = 1 the trace
+    /// at τ = z0 + 1 is never reached, so even an infinite one leaves J finite (kills the
+    /// length check's `<` turned `<=`, and `mu < 1` turned `<=`, which made it 0 · inf = NaN).
     #[test]
     fn j_online_needs_exactly_z0_plus_two_traces() {
         let design = OnlineDesign::new(2, 0.5).unwrap();
         assert!(j_online(&[1.0; 4], 0.5, design).is_ok());
         assert!(j_online(&[1.0; 3], 0.5, design).is_err());
+        let fixed = OnlineDesign::fixed(2).unwrap();
+        let j = j_online(&[1.0, 1.0, 1.0, f64::INFINITY], 0.5, fixed).unwrap();
+        // λ (1 + 1 + 1) / (1 - a³) with a = 1/2: 1.5 / 0.875.
+        assert!((j - 1.5 / 0.875).abs() < 1e-15, "{j}");
     }
 
     #[test]
@@ -294,7 +300,7 @@ mod tests {
         }
     }
 
-    /// The silent NaN: with m = 0 long blocks (p/q = 1/q), 0 · block_cost was NaN when
+    /// A silent NaN, fixed: with m = 0 long blocks (p/q = 1/q), 0 · block_cost was NaN when
     /// that unused block's cost overflowed. A finite J stays finite, an overflowing one is +inf.
     #[test]
     fn j_offline_is_inf_or_finite_never_nan() {
