@@ -181,7 +181,7 @@ def stationary_sparse(T):
     """Stationary law of a sparse row-stochastic matrix: pin one balance equation to the
     normalisation and solve with scipy's sparse LU."""
     n = T.shape[0]
-    A = (T.T - sp.eye_array(n)).tolil()
+    A = sp.lil_matrix(T.T - sp.identity(n, format="csr"))  # scipy 1.10 has no eye_array
     A[0, :] = 1.0
     b = np.zeros(n)
     b[0] = 1.0
