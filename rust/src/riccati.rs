@@ -253,6 +253,36 @@ mod tests {
         DMatrix::from_element(1, 1, x)
     }
 
+    /// The doubling squares the closed-loop contraction ρ = |A (1 - K C)| each step, so the
+    /// relative change after k steps is about ρ^(2^k): it stops at k = ⌈log2(ln tol / ln ρ)⌉
+    /// within one (kills a wrong relative change, `-` turned `+` or `/` turned `*` or `%`,
+    /// and the stopping rule's `||` turned `&&`, which all change the count; a system scaled by
+    /// 10^6 tells a relative change from an absolute one, as `/` turned `%` makes it).
+    #[test]
+    fn doubling_steps_match_the_contraction() {
+        // The last system is the first scaled by 10^6 (same ρ): the change must be relative.
+        for (a, c, q, r) in [
+            (1.2, 0.7, 0.8, 0.8),
+            (1.0, 0.1, 1.0, 1.0),
+            (1.0, 0.001, 1.0, 1.0),
+            (1.2, 0.7, 0.8e6, 0.8e6),
+        ] {
+            for tol in [1e-2, 1e-8, 1e-14] {
+                let ss = steady_state(&m(a), &m(c), &m(q), &m(r), tol, 200).unwrap();
+                let pbar = ss.pbar[(0, 0)];
+                let prior = a * pbar * a + q;
+                let k = prior * c / (c * prior * c + r);
+                let rho = (a * (1.0 - k * c)).abs();
+                let predicted = ((tol.ln() / rho.ln()).log2()).ceil() as i64;
+                let got = ss.iterations as i64;
+                assert!(
+                    (got - predicted).abs() <= 1,
+                    "{a} {c}: {got} vs {predicted} at {tol}"
+                );
+            }
+        }
+    }
+
     /// The prior solves the filtering DARE, and P̄ = g̃(P⁻) is a fixed point of g̃ ∘ h.
     #[test]
     fn prior_solves_the_dare() {
