@@ -283,6 +283,46 @@ mod tests {
         }
     }
 
+    /// The defect correction's rules (kills `x_norm > 0` turned `>=`, which divides by a zero
+    /// norm; the loop's `&&` turned `||` and `<` turned `<=`; and the acceptance test's
+    /// `0.5 * residual` turned `0.5 + residual` or `0.5 / residual`). On a scalar system, with
+    /// P̄ from the quadratic formula: at X = 0 the residual is absolute, |g̃(Q)| = q r / (c² q + r);
+    /// a Newton step from 0 does not halve it, so none is kept; from 3 P̄ every step halves it and
+    /// the limit of 3 stops the loop; from P̄ (1 + 3e-15), already below 16 ulps, none is tried
+    /// although one would halve it.
+    #[test]
+    fn refine_keeps_only_halving_steps_within_its_limits() {
+        let (a, c, q, r) = (1.2, 0.7, 0.8, 0.8);
+        let (ma, mc, mq, mr) = (m(a), m(c), m(q), m(r));
+        // Prior: c² p² + (r (1 - a²) - c² q) p - q r = 0, positive root; P̄ = p r / (c² p + r).
+        let b = r * (1.0 - a * a) - c * c * q;
+        let prior = (-b + (b * b + 4.0 * c * c * q * r).sqrt()) / (2.0 * c * c);
+        let pbar = prior * r / (c * c * prior + r);
+        let residual = |x: f64| fixed_point_residual(&ma, &mc, &mq, &mr, &m(x));
+        let newton = |x: f64| newton_step(&ma, &mc, &mq, &mr, &m(x)).unwrap()[(0, 0)];
+
+        let at_zero = residual(0.0);
+        assert!(
+            (at_zero - q * r / (c * c * q + r)).abs() < 1e-15,
+            "{at_zero}"
+        );
+        assert!(residual(newton(0.0)) > 0.5 * at_zero);
+        let (x, kept, res) = refine(&ma, &mc, &mq, &mr, m(0.0));
+        assert_eq!((x[(0, 0)], kept, res), (0.0, 0, at_zero));
+
+        let (x, kept, res) = refine(&ma, &mc, &mq, &mr, m(3.0 * pbar));
+        assert_eq!(kept, MAX_CORRECTIONS);
+        assert!(residual(newton(x[(0, 0)])) < 0.5 * res && res > CORRECTION_THRESHOLD);
+        assert!((x[(0, 0)] - pbar).abs() < 1e-5 * pbar);
+
+        let near = pbar * (1.0 + 3e-15);
+        let near_residual = residual(near);
+        assert!(near_residual > 0.0 && near_residual <= CORRECTION_THRESHOLD);
+        assert!(residual(newton(near)) < 0.5 * near_residual);
+        let (x, kept, _) = refine(&ma, &mc, &mq, &mr, m(near));
+        assert_eq!((x[(0, 0)], kept), (near, 0));
+    }
+
     /// The prior solves the filtering DARE, and P̄ = g̃(P⁻) is a fixed point of g̃ ∘ h.
     #[test]
     fn prior_solves_the_dare() {
