@@ -138,3 +138,46 @@ fn one_pass_segment_sums_keep_every_bit() {
         }
     }
 }
+
+/// `of_walk_with_masses` needs (z0 + 1)(kmax + 1) + 1 weighted traces and as many masses, and reads
+/// only those of longer tables (kills the length check's `||` turned `&&`, and `mass.len() <
+/// need` turned `>`).
+#[test]
+fn segments_need_enough_traces_and_masses() {
+    let (lam, z0, kmax) = (0.4, 2u64, 3u64);
+    let walk = Walk::new(lam, fixed(z0), 0.0).unwrap();
+    let need = ((z0 + 1) * (kmax + 1) + 1) as usize;
+    let w = wtr(lam, need + 5);
+    let mass = masses(&walk, need + 6);
+    let long = Segments::of_walk_with_masses(&w, &mass, &walk, kmax).unwrap();
+    let exact = Segments::of_walk_with_masses(&w[..need], &mass[..need], &walk, kmax).unwrap();
+    assert_eq!((&long.w, &long.m), (&exact.w, &exact.m));
+    assert!(Segments::of_walk_with_masses(&w[..need - 1], &mass, &walk, kmax).is_err());
+    assert!(Segments::of_walk_with_masses(&w, &mass[..need - 1], &walk, kmax).is_err());
+}
+
+/// Only mixed memories (μ < 1) are limited to `MAX_SEGMENTS_MIXED` segments, the limit itself
+/// allowed (kills `mu < 1.0` turned `<=` and `kmax > MAX_SEGMENTS_MIXED` turned `>=`).
+#[test]
+fn mixed_memory_depth_limit_is_inclusive() {
+    let mixed = OnlineDesign::new(2, 0.5).unwrap();
+    assert!(Segments::check_depth(mixed, MAX_SEGMENTS_MIXED).is_ok());
+    assert!(Segments::check_depth(mixed, MAX_SEGMENTS_MIXED + 1).is_err());
+    assert!(Segments::check_depth(fixed(2), MAX_SEGMENTS_MIXED + 1).is_ok());
+}
+
+/// Segments built up to kmax answer first-r-of-t attacks with r <= kmax and refuse deeper ones
+/// (kills `check_holds` returning Ok, which would read past the table).
+#[test]
+fn first_r_attack_needs_its_segments() {
+    let (lam, z0) = (0.5, 2u64);
+    let w = wtr(lam, 200);
+    let seg = Segments::new(&w, lam, fixed(z0), 2).unwrap();
+    let within = Attack::periodic(2, 5).unwrap();
+    assert_eq!(seg.j_attack(&within).unwrap(), seg.j_first_r(2, 5));
+    let deeper = Attack::periodic(3, 7).unwrap();
+    assert!(matches!(
+        seg.j_attack(&deeper),
+        Err(Error::InvalidArgument { .. })
+    ));
+}
