@@ -80,10 +80,10 @@ def time_loop(s: fa.LinearSystem, n_cells: int, repeats: int) -> tuple[float, li
 
 
 def clear_designs() -> None:
-    """Forget the designs a previous run cached (in this process), so every run designs every cell."""
-    from fakeack._grid_design import design_pq
+    """Forget what a previous run cached (how each lam reads as a fraction), so every run starts cold."""
+    from fakeack._grid_design import _lam_parts
 
-    design_pq.cache_clear()
+    _lam_parts.cache_clear()
 
 
 def time_grid(

@@ -1,7 +1,7 @@
 """One block of a parameter study: every quantity of its cells, as arrays (runs on any worker).
 
 A block is one system over a tile of (lam, ratio) cells. Each (lam, ratio) gets the online design
-of :func:`fakeack.design_online` (computed bit for bit by :mod:`fakeack._grid_design`); the
+of :func:`fakeack.design_online` (computed bit for bit by the compiled core); the
 compiled core evaluates the whole tile at once (:func:`fakeack._fakeack.grid_cells`, cells in
 parallel, traces shared per lam); the optional Monte Carlo runs :func:`fakeack.simulate` once per
 cell and budget with a seed derived from the study seed and the cell's coordinates. Nothing here
@@ -19,9 +19,10 @@ from typing import Any
 import numpy as np
 
 from . import _fakeack
-from ._grid_design import _lam_parts, design_pq
+from ._grid_design import lam_fractions
 from .attacks import MaskBlocking, PeriodicBlocking, RandomBlocking
 from .montecarlo import OnlineSchedule, simulate
+from .schedules import design_online
 from .system import LinearSystem
 
 __all__ = ["Block", "MonteCarlo", "cell_seed", "mc_attack", "run_block"]
@@ -106,17 +107,13 @@ def run_block(block: Block) -> dict[str, Any]:
     status = np.full(n, "ok", dtype=object)
     p = np.array([r.numerator for r in ratios], dtype=np.uint64)
     q = np.array([r.denominator for r in ratios], dtype=np.uint64)
-    # The exact design in the compiled core (the same bits as fakeack.design_online); the cells it
-    # leaves (no design, very long memories) take the Python path, which raises its own errors.
-    # λ as fakeack reads a float: the simplest fraction that rounds to it, else its binary value.
-    parts = [_lam_parts(float(x)) for x in block.lam]
-    simple = [(n, d) if d <= 10**9 else (0, 0) for n, d in parts]
-    lam_num = np.repeat(np.array([n for n, _ in simple], dtype=np.uint64), nr)
-    lam_den = np.repeat(np.array([d for _, d in simple], dtype=np.uint64), nr)
-    z0, mu = _fakeack.grid_designs(lam, lam_num, lam_den, p, q)
+    # The exact design in the compiled core (the same bits as fakeack.design_online, λ read as
+    # fakeack reads a float); the cells it leaves take design_online itself, and its errors.
+    num, den = lam_fractions(block.lam)
+    z0, mu = _fakeack.grid_designs(lam, np.repeat(num, nr), np.repeat(den, nr), p, q)
     for i in np.flatnonzero(z0 == 0).tolist():
         try:
-            z0[i], mu[i] = design_pq(float(lam[i]), int(p[i]), int(q[i]))
+            z0[i], mu[i] = design_online(float(lam[i]), Fraction(int(p[i]), int(q[i])))
         except ValueError as exc:
             status[i] = f"no online design: {exc}"
     listed = [_core_attack(b) for b in block.beta] if block.montecarlo and block.family == "periodic" else []
