@@ -386,3 +386,51 @@ pub(super) fn simulate_with(
     }
     Ok(totals.result(&plan))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::Moments;
+
+    fn pushed(xs: &[f64]) -> Moments {
+        let mut m = Moments::default();
+        for &x in xs {
+            m.push(x);
+        }
+        m
+    }
+
+    /// Merging the moments of two parts gives those of the whole (Chan et al.'s pairwise
+    /// update), checked against the two-pass mean and squared deviations of the whole, for every
+    /// split, empty parts included; a non-finite value in either part marks the merge (kills
+    /// every wrong operator of `Moments::merge`).
+    #[test]
+    fn merged_moments_are_those_of_the_whole() {
+        let xs: Vec<f64> = (0..23)
+            .map(|i| 1.5 + ((i * 37 % 11) as f64).sqrt() * 0.7)
+            .collect();
+        let mean = xs.iter().sum::<f64>() / xs.len() as f64;
+        let m2: f64 = xs.iter().map(|x| (x - mean) * (x - mean)).sum();
+        for split in 0..=xs.len() {
+            let mut m = pushed(&xs[..split]);
+            m.merge(&pushed(&xs[split..]));
+            assert_eq!(m.n, xs.len() as u64);
+            assert!((m.mean - mean).abs() < 1e-14 * mean, "{split}: {}", m.mean);
+            assert!((m.m2 - m2).abs() < 1e-12 * m2, "{split}: {} vs {m2}", m.m2);
+            assert!(!m.nonfinite);
+        }
+        for (a, b) in [
+            (vec![1.0, f64::INFINITY], vec![2.0]),
+            (vec![2.0], vec![f64::NAN]),
+        ] {
+            let mut m = pushed(&a);
+            m.merge(&pushed(&b));
+            assert!(m.nonfinite);
+        }
+        let mut m = pushed(&[3.0]);
+        m.merge(&Moments {
+            nonfinite: true,
+            ..Moments::default()
+        });
+        assert!(m.nonfinite && m.n == 1);
+    }
+}

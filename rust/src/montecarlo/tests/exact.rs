@@ -196,3 +196,28 @@ fn state_mode_matches_covariance_mode() {
         assert_close("E||e_1||²", r.j, sys.pbar().trace(), r.stderr, 4.0);
     }
 }
+
+/// Each run's J lies between the least and the largest trace it meets, so the sample standard
+/// deviation of the runs' J is at most half that range (Popoviciu's inequality; the sample
+/// variance has the factor n / (n - 1)): stderr <= (tr_max - tr_min) / (2 sqrt(n - 1)). Online
+/// with z0 = 2 and no attack, a flag after two losses brings the next packet at high power, so
+/// τ <= 2 (kills a run's J taken as its sum `%` or `*` the horizon instead of `/`, in the
+/// bit-sliced and in the lane kernels' drivers).
+#[test]
+fn standard_error_obeys_the_range_bound() {
+    let sys = scalar_sys();
+    let tr = sys.h_traces(2);
+    let cfg = McConfig {
+        runs: 2 * BLOCK_RUNS + 37,
+        ..online(0.5, 2, 1.0, None)
+    };
+    let n = cfg.runs as f64;
+    let bound = (tr[2] - tr[0]) / (2.0 * (n - 1.0).sqrt());
+    for (name, res) in run_both(&sys, &cfg) {
+        assert!(
+            res.stderr > 0.0 && res.stderr <= bound,
+            "{name}: {} vs {bound}",
+            res.stderr
+        );
+    }
+}
