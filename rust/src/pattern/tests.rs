@@ -181,3 +181,64 @@ fn first_r_attack_needs_its_segments() {
         Err(Error::InvalidArgument { .. })
     ));
 }
+
+/// The worst mask is the one of largest J among all masks with `blocked` of `t` flags blocked
+/// (every t-bit word counted out here), it has that J, and the third value is the consecutive
+/// mask's J from the closed form (kills `worst_mask` returning a constant).
+#[test]
+fn worst_mask_attains_the_exhaustive_maximum() {
+    let (lam, z0) = (0.5, 2u64);
+    let w = wtr(lam, 400);
+    let seg = Segments::new(&w, lam, fixed(z0), 8).unwrap();
+    for (t, blocked) in [(5usize, 2usize), (7, 3), (6, 0), (9, 8)] {
+        let (mask, j, j_consecutive) = worst_mask(&seg, t, blocked).unwrap();
+        assert_eq!(mask.len(), t);
+        assert_eq!(mask.iter().filter(|&&b| b).count(), blocked);
+        assert_eq!(seg.j_mask(&mask).unwrap(), j);
+        let best = (0u32..1 << t)
+            .filter(|b| b.count_ones() as usize == blocked)
+            .map(|b| {
+                seg.j_mask(&(0..t).map(|i| b >> i & 1 == 1).collect::<Vec<_>>())
+                    .unwrap()
+            })
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(j >= best * (1.0 - 1e-12), "{t} {blocked}: {j} vs {best}");
+        let closed = seg.j_first_r(blocked, t);
+        assert!((j_consecutive - closed).abs() < 1e-12 * closed);
+    }
+}
+
+/// With forged flags a segment k weighs ε^k, ε = 1 / (1 - γ); where k ln ε passes 700 the
+/// product is taken in logarithms. Checked against 10^(k log10 ε - 300) for values 1e-300,
+/// γ the largest double below 1 (ln ε ≈ 36.7, so k >= 20 takes that branch; kills its `+`
+/// turned `-`).
+#[test]
+fn block_factor_scaling_survives_large_powers() {
+    let walk = Walk::new(0.5, fixed(1), 1.0 - f64::EPSILON / 2.0).unwrap();
+    let ln_eps = walk.ln_block_factor();
+    assert!(ln_eps > 35.0);
+    let mut v = vec![1e-300; 30];
+    scale_by_block_factor(&mut v, &walk);
+    for (k, x) in v.iter().enumerate() {
+        let want = 10f64.powf(k as f64 * ln_eps / std::f64::consts::LN_10 - 300.0);
+        assert!((x - want).abs() < 1e-11 * want, "{k}: {x} vs {want}");
+    }
+}
+
+/// With μ = 1 a segment has no long interval: a trace beyond the double range just past the
+/// segment leaves it finite (kills `one_mu > 0.0` turned `>=`, which makes 0 · inf = NaN, hence
+/// +inf). Segment 0 of z0 = 2 is v[0] + v[1] + v[2].
+#[test]
+fn a_fixed_memory_ignores_the_trace_past_its_segment() {
+    let v = [
+        1.0,
+        2.0,
+        3.0,
+        f64::INFINITY,
+        f64::INFINITY,
+        f64::INFINITY,
+        1.0,
+    ];
+    let (w, _) = segment_sums(&v, &v, 2, 1.0, 0);
+    assert_eq!(w, vec![6.0]);
+}
