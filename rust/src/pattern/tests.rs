@@ -184,27 +184,37 @@ fn first_r_attack_needs_its_segments() {
 
 /// The worst mask is the one of largest J among all masks with `blocked` of `t` flags blocked
 /// (every t-bit word counted out here), it has that J, and the third value is the consecutive
-/// mask's J from the closed form (kills `worst_mask` returning a constant).
+/// mask's J from the closed form. Besides traces of the usual shape (where blocking
+/// consecutively is worst), weights that make segment 1 heavy and deeper ones light, so that
+/// spreading the blocked flags is worse (kills `worst_mask` returning a constant, and a search
+/// that never moves off the consecutive mask).
 #[test]
 fn worst_mask_attains_the_exhaustive_maximum() {
     let (lam, z0) = (0.5, 2u64);
-    let w = wtr(lam, 400);
-    let seg = Segments::new(&w, lam, fixed(z0), 8).unwrap();
-    for (t, blocked) in [(5usize, 2usize), (7, 3), (6, 0), (9, 8)] {
-        let (mask, j, j_consecutive) = worst_mask(&seg, t, blocked).unwrap();
-        assert_eq!(mask.len(), t);
-        assert_eq!(mask.iter().filter(|&&b| b).count(), blocked);
-        assert_eq!(seg.j_mask(&mask).unwrap(), j);
-        let best = (0u32..1 << t)
-            .filter(|b| b.count_ones() as usize == blocked)
-            .map(|b| {
-                seg.j_mask(&(0..t).map(|i| b >> i & 1 == 1).collect::<Vec<_>>())
-                    .unwrap()
-            })
-            .fold(f64::NEG_INFINITY, f64::max);
-        assert!(j >= best * (1.0 - 1e-12), "{t} {blocked}: {j} vs {best}");
-        let closed = seg.j_first_r(blocked, t);
-        assert!((j_consecutive - closed).abs() < 1e-12 * closed);
+    let mut hot = vec![1.0; 200];
+    hot[2..=4].fill(50.0);
+    for (w, spread) in [(wtr(lam, 400), false), (hot, true)] {
+        let seg = Segments::new(&w, lam, fixed(z0), 8).unwrap();
+        for (t, blocked) in [(5usize, 2usize), (7, 3), (6, 0), (9, 8)] {
+            let (mask, j, j_consecutive) = worst_mask(&seg, t, blocked).unwrap();
+            assert_eq!(mask.len(), t);
+            assert_eq!(mask.iter().filter(|&&b| b).count(), blocked);
+            assert_eq!(seg.j_mask(&mask).unwrap(), j);
+            let best = (0u32..1 << t)
+                .filter(|b| b.count_ones() as usize == blocked)
+                .map(|b| {
+                    let m: Vec<bool> = (0..t).map(|i| b >> i & 1 == 1).collect();
+                    seg.j_mask(&m).unwrap()
+                })
+                .fold(f64::NEG_INFINITY, f64::max);
+            assert!(j >= best * (1.0 - 1e-12), "{t} {blocked}: {j} vs {best}");
+            let closed = seg.j_first_r(blocked, t);
+            assert!((j_consecutive - closed).abs() < 1e-12 * closed);
+            if spread && (t, blocked) == (5, 2) {
+                assert_eq!(mask, [true, false, true, false, false]);
+                assert!(j > j_consecutive * 1.01);
+            }
+        }
     }
 }
 
