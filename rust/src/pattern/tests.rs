@@ -252,3 +252,24 @@ fn a_fixed_memory_ignores_the_trace_past_its_segment() {
     let (w, _) = segment_sums(&v, &v, 2, 1.0, 0);
     assert_eq!(w, vec![6.0]);
 }
+
+/// The large-period limit takes β in [0, 1] only, and at β = 0 is the unattacked J of the
+/// closed form, (t W_0) / (t M_0) (kills the range check's `&&` turned `||` and W_0 / M_0
+/// turned `%`).
+#[test]
+fn large_period_limit_checks_beta_and_starts_unattacked() {
+    let (lam, z0) = (0.5, 2u64);
+    let w = wtr(lam, 200);
+    let seg = Segments::new(&w, lam, fixed(z0), 4).unwrap();
+    let j_max = 100.0;
+    let at_zero = j_limit(&seg, lam, j_max, 0.0).unwrap();
+    let unattacked = seg.j_first_r(0, 7);
+    assert!(
+        (at_zero - unattacked).abs() < 1e-14 * unattacked,
+        "{at_zero} vs {unattacked}"
+    );
+    for beta in [1.5, -0.1, f64::NAN, f64::INFINITY] {
+        assert!(j_limit(&seg, lam, j_max, beta).is_err(), "{beta}");
+    }
+    assert!(j_limit(&seg, lam, j_max, 1.0).is_ok());
+}
