@@ -203,3 +203,179 @@ def test_detection_bad_input():
         fa.detection_rates(0.5, 2, None)
     with pytest.raises(TypeError, match="delivered"):
         fa.detect_attack(1.5, 10, 0.5, 2)
+
+
+def test_detect_attack_reports_its_inputs_and_uses_mu():
+    """The outcome echoes the observation (delivered flag-ACKs, window, level, alternative), and
+    the budget estimate uses the memory probability μ: at μ = 0.4 a delivered rate from the
+    regime mix with β = 0.3 (rates from the reference chain and u = a^z0 (μ + (1-μ) a)) is
+    estimated as 0.3.
+
+    Kills: the outcome's delivered, n_steps, alpha or alternative replaced or dropped; μ dropped
+    from the estimate of β (it would use the μ = 1 rates)."""
+    det = fa.detect_attack(1350, 10_000, 0.5, 2, alpha=0.05, alternative="greater")
+    assert (det.delivered, det.n_steps, det.alpha, det.alternative) == (1350, 10_000, 0.05, "greater")
+    lam, z0, mu, beta = 0.3, 3, 0.4, 0.3
+    a = 1 - lam
+    u = a**z0 * (mu + (1 - mu) * a)
+    f_blk = lam * u / (1 - u)
+    T, flag = ref.online_chain(lam, z0, mu)
+    f_on = ref.stationary_dense(T) @ flag
+    n = 10**12
+    rho = (1 - beta) / (beta / f_blk + (1 - beta) / f_on)
+    assert fa.detect_attack(round(n * rho), n, lam, z0, mu).beta_hat == pytest.approx(beta, abs=1e-9)
+
+
+def test_detect_attack_level_is_strict():
+    """The hypothesis "no attacker" is rejected when Φ(z) < α, strictly: at α equal to the p-value the count is
+    not an alarm, just above it it is.
+
+    Kills: p <= alpha."""
+    p = fa.detect_attack(1380, 10_000, 0.5, 2).p_value
+    assert p == pytest.approx(norm.cdf((1380 - 10_000 / 7) / math.sqrt(10_000 * 22 / 7**3)), rel=1e-9)
+    assert not fa.detect_attack(1380, 10_000, 0.5, 2, alpha=p).attack_detected
+    assert fa.detect_attack(1380, 10_000, 0.5, 2, alpha=p * (1 + 1e-12)).attack_detected
+
+
+def test_detect_attack_window_limits():
+    """A window of one step is valid (expected n/m = 1/7 flags; no flag in it estimates β = 1);
+    an empty or negative window, or a negative count, is refused as such.
+
+    Kills: the window's minimum 1 removed (a negative window would fail on a square root), or
+    raised to 2, in detect_attack and estimate_beta; the count's minimum 0 removed in
+    estimate_beta (β̂ would be clipped to 1)."""
+    assert fa.detect_attack(0, 1, 0.5, 2).expected == pytest.approx(1 / 7, rel=1e-14)
+    for n in (0, -5):
+        with pytest.raises(ValueError, match="n_steps must be at least 1"):
+            fa.detect_attack(0, n, 0.5, 2)
+    with pytest.raises(ValueError, match="n_steps must be at least 1"):
+        fa.estimate_beta(0, 0, 0.5, 2)
+    with pytest.raises(ValueError, match="delivered must be at least 0"):
+        fa.estimate_beta(-1, 10, 0.5, 2)
+    # No flag-ACK at all: every flag blocked, β̂ = 1 exactly, from one step on.
+    for lam, z0, mu in [(0.5, 2, 1.0), (0.3, 3, 0.4), (0.8, 1, 0.0), (0.45, 5, 0.7), (0.1, 2, 0.25)]:
+        assert fa.estimate_beta(0, 1, lam, z0, mu) == 1.0
+
+
+def test_delivered_rate_uses_mu():
+    """Without attack the delivered rate is 1/m, m the mean interval between flag-ACKs; μ = 0 is
+    the fixed memory z0 + 1 (run formula, k = 4 losses in a row at λ = 0.45).
+
+    Kills: μ dropped from delivered_flag_rate."""
+    m, _ = run_moments(0.45, 4)
+    assert fa.delivered_flag_rate(0.45, 3, None, 0.0) == pytest.approx(1 / m, rel=1e-12)
+
+
+def test_detection_rates_reports_its_inputs_and_defaults():
+    """The record echoes the simulation's size, level and burn-in; the documented defaults are
+    1000-step windows, 2000 runs and seed 1.
+
+    Kills: runs, n_steps, alpha or burn_in replaced or dropped in the record; the defaults of
+    n_steps, runs and seed changed."""
+    r = fa.detection_rates(0.5, 2, (1, 5), n_steps=50, runs=7, alpha=0.2, seed=4, burn_in=3)
+    assert (r.runs, r.n_steps, r.alpha, r.burn_in) == (7, 50, 0.2, 3)
+    assert fa.detection_rates(0.5, 2, (1, 5), runs=2).n_steps == 1000
+    assert fa.detection_rates(0.5, 2, (1, 5), n_steps=20).runs == 2000
+    assert fa.detection_rates(0.5, 2, (1, 5), n_steps=60, runs=300) == fa.detection_rates(
+        0.5, 2, (1, 5), n_steps=60, runs=300, seed=1
+    )
+
+
+def test_detection_rates_attacked_windows_use_the_next_seed():
+    """The attacked windows are simulated from seed + 1: under an attack that blocks nothing they
+    are the attack-free windows of seed + 1 (and not those of seed - 1 or seed + 2, which
+    differ here).
+
+    Kills: seed - 1 or seed + 2 for the attacked windows."""
+    kw = dict(n_steps=200, runs=300, alpha=0.2)
+    nothing = fa.MaskBlocking([0])
+    rates = {s: fa.detection_rates(0.5, 2, nothing, seed=s, **kw).false_alarm for s in (4, 6, 7)}
+    assert len(set(rates.values())) == 3
+    assert fa.detection_rates(0.5, 2, nothing, seed=5, **kw).detection == rates[6]
+
+
+def test_detection_rates_standard_errors_and_spread():
+    """The reported standard errors are the binomial sqrt(p (1 - p) / runs) of each rate; the
+    spread of the estimates is the sample standard deviation, defined from two windows on.
+
+    Kills: p (1 + p), p (2 - p), max(p (1 - p), 1) or multiplying by runs in the standard error;
+    ddof = 2 in the spread (infinite or NaN with two windows)."""
+    runs = 400
+    r = fa.detection_rates(0.5, 2, (1, 5), n_steps=300, runs=runs, alpha=0.05, seed=2)
+    assert 0 < r.false_alarm < 1 and 0 < r.detection < 1
+    for p, se in ((r.false_alarm, r.false_alarm_stderr), (r.detection, r.detection_stderr)):
+        assert se == pytest.approx(math.sqrt(p * (1 - p) / runs), rel=1e-12)
+    two = fa.detection_rates(0.5, 2, (1, 5), n_steps=300, runs=2, seed=2)
+    assert math.isfinite(two.beta_hat_std) and two.beta_hat_std >= 0
+
+
+def test_detection_rates_estimates_use_mu():
+    """At μ = 0.4 the mean estimate of β under the 1/5 pattern is near the inversion at the exact
+    delivered rate with the μ = 0.4 regime rates (0.2 here); with the μ = 1 rates it would be 0.49.
+
+    Kills: μ dropped from the per-window estimates."""
+    lam, z0, mu = 0.5, 2, 0.4
+    a = 1 - lam
+    u = a**z0 * (mu + (1 - mu) * a)
+    f_blk = lam * u / (1 - u)
+    T, flag = ref.online_chain(lam, z0, mu)
+    f_on = ref.stationary_dense(T) @ flag
+    rate = fa.delivered_flag_rate(lam, z0, (1, 5), mu)
+    b = (1 - rate / f_on) / (1 + rate / f_blk - rate / f_on)
+    r = fa.detection_rates(lam, z0, (1, 5), n_steps=1000, runs=400, mu=mu, seed=3)
+    assert abs(r.beta_hat_mean - b) < 0.02 and abs(b - 0.2) < 0.01
+
+
+def test_detection_rates_argument_limits():
+    """Windows of one step and two runs are the smallest valid sizes, seed 0 is valid; empty
+    windows, a single run, a negative burn-in, and runs above 2^24 or seeds outside [0, 2^63]
+    are refused, each before the next argument is read (here an invalid test name or level).
+
+    Kills: the minimum of n_steps, runs, seed or burn_in removed or moved (n_steps >= 2,
+    runs >= 3, seed >= 1); the maximum of runs or seed raised (2 << 24, 1 << 25, 3^63, 2^64) or
+    left at the package-wide 2^62."""
+    small = fa.detection_rates(0.5, 2, (1, 5), n_steps=1, runs=2, seed=0)
+    assert (small.n_steps, small.runs) == (1, 2)
+    assert fa.detection_rates(0.5, 2, (1, 5), n_steps=20, runs=5, seed=2**63).runs == 5
+    bad = [
+        (dict(n_steps=0), "n_steps must be at least 1"),
+        (dict(n_steps=0, test="interval"), "n_steps must be at least 1"),
+        (dict(runs=1), "runs must be at least 2"),
+        (dict(burn_in=-1), "burn_in must be at least 0"),
+        (dict(runs=(1 << 24) + 1, alpha=2.0), "runs must be at most"),
+        (dict(seed=-1, test="none"), "seed must be at least 0"),
+        (dict(seed=2**63 + 1, test="none"), "seed must be at most"),
+    ]
+    for kw, msg in bad:
+        with pytest.raises(ValueError, match=msg):
+            fa.detection_rates(0.5, 2, (1, 5), **kw)
+
+
+def test_interval_test_rates_are_two_sided():
+    """The interval test is two-sided: it is the default for it, and a one-sided alternative is
+    refused.
+
+    Kills: the default alternative "less" for every test (or a misspelt "two-sided"); the check
+    of the interval test's alternative skipped."""
+    r = fa.detection_rates(0.5, 2, (1, 5), n_steps=100, runs=20, test="interval")
+    assert (r.test, r.alternative) == ("interval", "two-sided")
+    with pytest.raises(ValueError, match="alternative: the interval test is two-sided"):
+        fa.detection_rates(0.5, 2, (1, 5), n_steps=100, runs=20, test="interval", alternative="less")
+
+
+def test_interval_moments_beyond_the_double_range():
+    """With λ = 1/2 and z0 = 600 (μ = 1) the mean interval, 1 + (1 - a^600)/(λ a^600) ≈ 2^601 by
+    the run formula, is a double but its square is not: the mean is exact and the variance inf;
+    at z0 = 1100 (μ = 1 and μ = 1/2) both are inf. None of these warns: inf is the documented
+    answer.
+
+    Kills: the overflow or the invalid-operation warnings left on (inf - inf and 0 · inf arise
+    at μ = 1/2)."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        m, v = fa.flag_interval_moments(0.5, 600)
+        assert m == pytest.approx(1 + (1 - 0.5**600) / (0.5 * 0.5**600), rel=1e-9) and v == math.inf
+        assert fa.flag_interval_moments(0.5, 1100) == (math.inf, math.inf)
+        assert fa.flag_interval_moments(0.5, 1100, 0.5) == (math.inf, math.inf)
