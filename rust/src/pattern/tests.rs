@@ -273,3 +273,27 @@ fn large_period_limit_checks_beta_and_starts_unattacked() {
     }
     assert!(j_limit(&seg, lam, j_max, 1.0).is_ok());
 }
+
+/// The threshold of the large-period limit is 0 when the online schedule does not beat the
+/// reference even unattacked (J_ref <= J_on), whatever J_max, and 1 when even J_max does not
+/// exceed the reference; between, the limit J(β̄) equals the reference (kills the first test's
+/// `||` turned `&&`).
+#[test]
+fn large_period_threshold_at_its_ends() {
+    let (lam, z0) = (0.5, 2u64);
+    let w = wtr(lam, 200);
+    let seg = Segments::new(&w, lam, fixed(z0), 4).unwrap();
+    let j_on = seg.j_first_r(0, 1);
+    let j_max = 3.0 * j_on;
+    assert_eq!(beta_limit_threshold(&seg, lam, j_max, 0.9 * j_on), 0.0);
+    assert_eq!(
+        beta_limit_threshold(&seg, lam, f64::INFINITY, 2.0 * j_on),
+        0.0
+    );
+    assert_eq!(beta_limit_threshold(&seg, lam, j_max, 4.0 * j_on), 1.0);
+    let j_ref = 2.0 * j_on;
+    let bar = beta_limit_threshold(&seg, lam, j_max, j_ref);
+    assert!(0.0 < bar && bar < 1.0);
+    let at = j_limit(&seg, lam, j_max, bar).unwrap();
+    assert!((at - j_ref).abs() < 1e-12 * j_ref, "{at} vs {j_ref}");
+}
