@@ -389,7 +389,7 @@ pub(super) fn simulate_with(
 
 #[cfg(test)]
 mod tests {
-    use super::Moments;
+    use super::{running_means, Moments};
 
     fn pushed(xs: &[f64]) -> Moments {
         let mut m = Moments::default();
@@ -432,5 +432,19 @@ mod tests {
             ..Moments::default()
         });
         assert!(m.nonfinite && m.n == 1);
+    }
+
+    /// The running means are compensated: 1, 1e100, 1, -1e100 sums to 2 exactly (a plain sum
+    /// gives 0), whichever term is the larger at each step; an infinite term gives +inf, not
+    /// inf - inf = NaN (kills the compensation's `+=` and `+` turned `-=`, `*=`, `-` or `*`).
+    #[test]
+    fn running_means_are_compensated() {
+        let j = running_means(&[1.0, 1e100, 1.0, -1e100, 2.0]);
+        assert_eq!(j[0], 1.0);
+        assert_eq!(j[1], 1e100 / 2.0);
+        assert_eq!(j[3], 0.5);
+        assert_eq!(j[4], 4.0 / 5.0);
+        let j = running_means(&[1.0, f64::INFINITY, 1.0]);
+        assert_eq!(j, [1.0, f64::INFINITY, f64::INFINITY]);
     }
 }
