@@ -187,12 +187,14 @@ fn first_r_attack_needs_its_segments() {
 /// mask's J from the closed form. Besides traces of the usual shape (where blocking
 /// consecutively is worst), weights that make segment 1 heavy and deeper ones light, so that
 /// spreading the blocked flags is worse (kills `worst_mask` returning a constant, and a search
-/// that never moves off the consecutive mask).
+/// that never moves off the consecutive mask, as with `best_j * (1 + 1e-12)` turned `+`).
 #[test]
 fn worst_mask_attains_the_exhaustive_maximum() {
     let (lam, z0) = (0.5, 2u64);
-    let mut hot = vec![1.0; 200];
-    hot[2..=4].fill(50.0);
+    // J below 1 here, so that an absolute tolerance of 1 in place of the relative 1e-12 would
+    // never move off the consecutive mask.
+    let mut hot = vec![0.01; 200];
+    hot[2..=4].fill(0.5);
     for (w, spread) in [(wtr(lam, 400), false), (hot, true)] {
         let seg = Segments::new(&w, lam, fixed(z0), 8).unwrap();
         for (t, blocked) in [(5usize, 2usize), (7, 3), (6, 0), (9, 8)] {
