@@ -299,3 +299,18 @@ fn large_period_threshold_at_its_ends() {
     let at = j_limit(&seg, lam, j_max, bar).unwrap();
     assert!((at - j_ref).abs() < 1e-12 * j_ref, "{at} vs {j_ref}");
 }
+
+/// Below e^700 the block factor multiplies directly: with γ = 1/2 (ε = 2) and values 1e-300,
+/// x ε^k = x 2^k is a double, and the direct product of the first twenty stays within 1e-14 of
+/// it, where the logarithmic route, exp(ln x + k ln 2), loses about |ln x| ulps (kills the branch's
+/// `f < 700` turned `==`, which sends every product the long way).
+#[test]
+fn block_factor_scaling_is_direct_below_the_overflow() {
+    let walk = Walk::new(0.5, fixed(1), 0.5).unwrap();
+    let mut v = vec![1e-300; 20];
+    scale_by_block_factor(&mut v, &walk);
+    for (k, x) in v.iter().enumerate() {
+        let want = 1e-300 * 2f64.powi(k as i32);
+        assert!((x - want).abs() <= 1e-14 * want, "{k}: {x:e} vs {want:e}");
+    }
+}
