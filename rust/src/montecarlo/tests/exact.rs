@@ -221,3 +221,27 @@ fn standard_error_obeys_the_range_bound() {
         );
     }
 }
+
+/// The standard error is the sample standard deviation over sqrt(runs): finite from two runs
+/// on, and four times the runs halve it (within the few per cent the standard deviation's own
+/// estimate varies by). Kills `m.n < 2` turned `<=` and the variance's `m2 / (n - 1)` turned
+/// `%` (which leaves the error independent of the number of runs).
+#[test]
+fn standard_error_shrinks_as_the_root_of_the_runs() {
+    let sys = scalar_sys();
+    let with = |runs: u64| {
+        let cfg = McConfig {
+            runs,
+            ..online(0.5, 2, 1.0, None)
+        };
+        run_both(&sys, &cfg)
+    };
+    for (name, res) in with(2) {
+        assert!(res.stderr.is_finite() && res.stderr > 0.0, "{name}: {}", res.stderr);
+    }
+    let (few, many) = (with(500), with(2000));
+    for ((name, a), (_, b)) in few.iter().zip(&many) {
+        let ratio = b.stderr / a.stderr;
+        assert!((0.4..0.6).contains(&ratio), "{name}: {ratio}");
+    }
+}
