@@ -237,11 +237,47 @@ fn standard_error_shrinks_as_the_root_of_the_runs() {
         run_both(&sys, &cfg)
     };
     for (name, res) in with(2) {
-        assert!(res.stderr.is_finite() && res.stderr > 0.0, "{name}: {}", res.stderr);
+        assert!(
+            res.stderr.is_finite() && res.stderr > 0.0,
+            "{name}: {}",
+            res.stderr
+        );
     }
     let (few, many) = (with(500), with(2000));
     for ((name, a), (_, b)) in few.iter().zip(&many) {
         let ratio = b.stderr / a.stderr;
         assert!((0.4..0.6).contains(&ratio), "{name}: {ratio}");
     }
+}
+
+/// Two runs of two steps: step 1 is at high power (τ = 0), step 2 at low power arrives or not,
+/// so a run's J is tr_0 or (tr_0 + tr_1) / 2. When the two runs differ by d = (tr_1 - tr_0) / 2
+/// the sample variance is d² / 2 and the standard error sqrt(d² / 2 / 2) = d / 2; else it is 0
+/// (kills the variance's n - 1 turned n + 1 or n / 1).
+#[test]
+fn standard_error_of_two_runs_is_exact() {
+    let sys = scalar_sys();
+    let tr = sys.h_traces(1);
+    let half_d = (tr[1] - tr[0]) / 4.0;
+    let mut differed = 0;
+    for seed in 1..=12 {
+        let cfg = McConfig {
+            runs: 2,
+            horizon: 2,
+            seed,
+            ..online(0.5, 2, 1.0, None)
+        };
+        for (name, res) in run_both(&sys, &cfg) {
+            if res.stderr == 0.0 {
+                continue;
+            }
+            assert!(
+                (res.stderr - half_d).abs() < 1e-12 * half_d,
+                "{name}: {}",
+                res.stderr
+            );
+            differed += 1;
+        }
+    }
+    assert!(differed > 0);
 }
