@@ -23,6 +23,30 @@ def test_paper_pbar_closed_form(paper):
     assert paper.residual < 1e-14
 
 
+@pytest.mark.parametrize("q", [1e6, 1e9, 1e12, 1e14])
+def test_pbar_of_a_precise_sensor_keeps_its_digits(q):
+    """With q / r large, P̄ is a tiny fraction of the prior: the measurement update must not
+    subtract two near-equal numbers (X - K C X lost 4 digits at q / r = 1e12 and 2 at 1e14,
+    with a residual of 0 that did not show it). Reference: the prior from the quadratic formula
+    (no cancellation: -b > 0) and P̄ = p r / (c^2 p + r)."""
+    a, c, r = 0.5, 1.0, 1.0
+    s = fa.LinearSystem(a, c, q, r)
+    qb = r - a * a * r - q * c * c
+    p = (-qb + math.sqrt(qb * qb + 4 * c * c * q * r)) / (2 * c * c)
+    assert_allclose(s.pbar[0, 0], p * r / (c * c * p + r), rtol=4e-16)
+    assert s.residual < 1e-15
+
+
+def test_pbar_of_a_precise_coupled_sensor():
+    """Two coupled states seen through C = R = I: P̄ = P⁻ (P⁻ + I)^{-1}. With A = 0, P⁻ = Q;
+    for Q = [[1e12, 1e6], [1e6, 3]] that is [[3e12, 1e6], [1e6, 2e12 + 3]] / (3e12 + 4),
+    exact in integers, each entry to a few ulps (the off-diagonal one is 1e-6 of the others)."""
+    Q = np.array([[1e12, 1e6], [1e6, 3.0]])
+    s = fa.LinearSystem(np.zeros((2, 2)), np.eye(2), Q, np.eye(2))
+    expected = np.array([[3e12, 1e6], [1e6, 2e12 + 3]]) / (3e12 + 4)
+    assert_allclose(s.pbar, expected, rtol=1e-14)
+
+
 @pytest.mark.parametrize("n", [1, 2, 5, 20, 50, 200])
 def test_pbar_matches_scipy(n):
     rng = np.random.default_rng(n)

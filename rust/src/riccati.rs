@@ -42,16 +42,25 @@ pub struct SteadyState {
 /// The Riccati operator g̃(X) = X - X C' (C X C' + R)^{-1} C X (the Kalman measurement update,
 /// Sec. II-A) together with (C X C' + R)^{-1} C X, the transposed Kalman gain. `None` when
 /// C X C' + R is not positive definite.
+///
+/// Evaluated in Joseph's form (I - K C) X (I - K C)' + K R K', equal to g̃(X) for the optimal
+/// gain K. Why: the subtraction X - K C X cancels when the sensor is precise (g̃(X) much
+/// smaller than X): with q / r = 10^12 it loses 4 significant digits of P̄ (and the residual,
+/// computed the same way, does not see it). Joseph's form adds two positive semidefinite terms,
+/// and its first-order insensitivity to the gain's rounding keeps P̄ to a few ulps there.
 pub(crate) fn measurement_update(
     x: &DMatrix<f64>,
     c: &DMatrix<f64>,
     r: &DMatrix<f64>,
 ) -> Option<(DMatrix<f64>, DMatrix<f64>)> {
+    let n = x.nrows();
     let innovation_cov = c * x * c.transpose() + r;
     let innovation_chol = innovation_cov.cholesky()?;
-    let xc = x * c.transpose();
-    let gain_t = innovation_chol.solve(&xc.transpose());
-    Some((x - &xc * &gain_t, gain_t))
+    let gain_t = innovation_chol.solve(&(c * x));
+    let gain = gain_t.transpose();
+    let closed = DMatrix::<f64>::identity(n, n) - &gain * c;
+    let joseph = &closed * x * closed.transpose() + &gain * r * &gain_t;
+    Some((joseph, gain_t))
 }
 
 /// Solves for P̄ = g̃(P⁻), where P⁻ is the stabilising solution of the filtering DARE, for
@@ -346,6 +355,42 @@ mod tests {
         assert!((post[(0, 0)] - x * r / (c * c * x + r)).abs() < 1e-15);
         assert!((gain_t[(0, 0)] - c * x / (c * c * x + r)).abs() < 1e-15);
         assert!(measurement_update(&m(x), &m(c), &m(-1.0)).is_none());
+    }
+
+    /// A precise sensor (q / r = 10^12): P̄ is 10^-12 of the prior, so the update must not
+    /// subtract two near-equal numbers. Scalar: g̃(x) = x r / (c² x + r) within 4 ulps (the
+    /// subtracting form X - K C X is off by ~1e-4); a coupled 2-state prior whose update is an
+    /// exact rational matrix, entry by entry (the off-diagonal entry is 1e-6 of the others);
+    /// and P̄ from `steady_state` with the prior from the quadratic formula.
+    #[test]
+    fn precise_sensor_keeps_the_digits_of_pbar() {
+        let (x, c, r) = (1e12, 1.0, 1.0);
+        let (post, _) = measurement_update(&m(x), &m(c), &m(r)).unwrap();
+        let exact = x * r / (c * c * x + r);
+        assert!((post[(0, 0)] - exact).abs() < 4.0 * f64::EPSILON * exact);
+
+        // C = R = I: g̃(X) = X (X + I)^{-1}, which for this integer X is exactly
+        // [[3e12, 1e6], [1e6, 2e12 + 3]] / (3e12 + 4) (every number here is exact in a double).
+        let xm = DMatrix::from_row_slice(2, 2, &[1e12, 1e6, 1e6, 3.0]);
+        let eye = DMatrix::<f64>::identity(2, 2);
+        let (post, _) = measurement_update(&xm, &eye, &eye).unwrap();
+        let det = 3e12 + 4.0;
+        let expected = DMatrix::from_row_slice(2, 2, &[3e12, 1e6, 1e6, 2e12 + 3.0]) / det;
+        for (p, e) in post.iter().zip(expected.iter()) {
+            assert!((p - e).abs() < 1e-14 * e.abs(), "{post}");
+        }
+
+        let (a, q) = (0.5, 1e12);
+        let b = r - a * a * r - q * c * c;
+        let prior = (-b + (b * b + 4.0 * c * c * q * r).sqrt()) / (2.0 * c * c);
+        let pbar = prior * r / (c * c * prior + r);
+        let ss = steady_state(&m(a), &m(c), &m(q), &m(r), 1e-14, 200).unwrap();
+        assert!(
+            (ss.pbar[(0, 0)] - pbar).abs() < 1e-14 * pbar,
+            "{}",
+            ss.pbar[(0, 0)]
+        );
+        assert!(ss.residual < 1e-14);
     }
 
     /// An unstable mode C cannot see has no stabilising solution: the solver says it failed.
