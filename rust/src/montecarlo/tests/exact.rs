@@ -281,3 +281,26 @@ fn standard_error_of_two_runs_is_exact() {
     }
     assert!(differed > 0);
 }
+
+/// Runs whose J is finite while their average overflows: a stable scalar system seen through
+/// a useless sensor (c = 1e-200) has P̄ = q / (1 - a²) = 9.3e307, every packet is sent at high
+/// power, so each of the two runs has J = P̄ exactly (no spread) but their sum is beyond the
+/// double range and J is +inf. The standard error of an infinite J is infinite, never 0 (kills
+/// the error's rule `nonfinite || !J.is_finite()` turned `&&`, which gives 0 here).
+#[test]
+fn standard_error_of_an_overflowing_mean_is_infinite() {
+    let m = |x: f64| DMatrix::from_element(1, 1, x);
+    let sys = LinearSystem::new(m(0.5), m(1e-200), m(7e307), m(1.0)).unwrap();
+    let pbar = sys.h_traces(0)[0];
+    assert!(pbar.is_finite() && 2.0 * pbar == f64::INFINITY, "{pbar}");
+    let cfg = McConfig {
+        schedule: McSchedule::Offline { pattern: vec![1] },
+        runs: 2,
+        horizon: 1,
+        ..online(0.5, 2, 1.0, None)
+    };
+    for (name, res) in run_both(&sys, &cfg) {
+        assert_eq!(res.j, f64::INFINITY, "{name}");
+        assert_eq!(res.stderr, f64::INFINITY, "{name}");
+    }
+}
