@@ -139,39 +139,55 @@ fn attack<const PROTO_A: bool, const B: usize>(
     delivery
 }
 
-/// Independent blocking's β decisions, drawn ahead: each lane holds one for its next flag.
+/// Independent blocking's β decisions, drawn ahead: each lane holds up to two, for its next
+/// two flags.
 ///
 /// A decision is drawn before the flag it decides, from random bits nothing else reads, so it
 /// is exactly an independent Bernoulli(β) draw, as one made at the flag's step would be. Drawing
 /// ahead lets many lanes share a draw: a bit-serial draw takes about log2(lanes) + 1.3 words
-/// (see `Rng4::bernoulli`), so redrawing every used decision at once when some flag finds its
-/// lane without one (every other step or so on the paper's example) costs about half the words
-/// of a draw per step for the flag lanes alone.
+/// (see `Rng4::bernoulli`) whatever the number of lanes, so redrawing every used decision at
+/// once, both planes, when some flag finds its lane without one costs far fewer words per step
+/// than a draw for each step's flags. Two planes, not one: a lane flags at most every z0 + 1
+/// steps, so with one decision a lane ran dry about every third step on the paper's example;
+/// with two, a refill (two draws) comes several times less often.
 struct BetaPool {
-    /// Each lane's decision (1 = block its next flag), valid where `fresh`.
-    decision: W,
-    /// Lanes whose decision is drawn and not yet used.
+    /// Each lane's decision for its next flag (1 = block it), valid where `fresh`.
+    next: W,
+    /// Lanes whose `next` is drawn and not yet used.
     fresh: W,
+    /// Each lane's decision for the flag after, valid where `spare_fresh`.
+    spare: W,
+    /// Lanes whose `spare` is drawn and not yet used.
+    spare_fresh: W,
 }
 
 impl BetaPool {
     /// No decision drawn yet.
     const EMPTY: BetaPool = BetaPool {
-        decision: ZERO,
+        next: ZERO,
         fresh: ZERO,
+        spare: ZERO,
+        spare_fresh: ZERO,
     };
 
     /// The decisions for this step's flags `flag` (1 = blocked), drawn with threshold `thr`.
     #[inline(always)]
     fn take<S: StreamStepper>(&mut self, flag: W, rng: &mut Rng4, stepper: S, thr: u64) -> W {
         if any(andnot(flag, self.fresh)) {
-            let used = not(self.fresh);
-            let drawn = rng.bernoulli(stepper, thr, used);
-            self.decision = or(and(self.decision, self.fresh), drawn);
+            // A draw is 0 outside the lanes it is made for, so OR-ing keeps the valid ones.
+            let drawn = rng.bernoulli(stepper, thr, not(self.fresh));
+            self.next = or(and(self.next, self.fresh), drawn);
             self.fresh = ONES;
+            let drawn = rng.bernoulli(stepper, thr, not(self.spare_fresh));
+            self.spare = or(and(self.spare, self.spare_fresh), drawn);
+            self.spare_fresh = ONES;
         }
-        self.fresh = andnot(self.fresh, flag);
-        and(self.decision, flag)
+        let blocked = and(self.next, flag);
+        // The flag lanes move their spare decision up.
+        self.next = or(andnot(self.next, flag), and(self.spare, flag));
+        self.fresh = or(andnot(self.fresh, flag), and(self.spare_fresh, flag));
+        self.spare_fresh = andnot(self.spare_fresh, flag);
+        blocked
     }
 }
 

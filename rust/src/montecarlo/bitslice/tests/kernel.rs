@@ -41,8 +41,9 @@ struct PlainRuns<'a> {
     hist: Vec<Vec<u64>>,
     /// Each lane's Σ tr[τ] over its steps with τ at or above a deep plan's level, in order.
     deep_sum: Vec<f64>,
-    /// Each lane's β decision for its next flag, if drawn and unused (independent blocking).
-    beta_ahead: Vec<Option<bool>>,
+    /// Each lane's β decisions for its next two flags, drawn and unused, the next first
+    /// (independent blocking).
+    beta_ahead: Vec<Vec<bool>>,
 }
 
 impl<'a> PlainRuns<'a> {
@@ -56,7 +57,7 @@ impl<'a> PlainRuns<'a> {
             hi: vec![true; RUNS],
             hist: vec![vec![0; case.plan.depth() + 1]; RUNS],
             deep_sum: vec![0.0; RUNS],
-            beta_ahead: vec![None; RUNS],
+            beta_ahead: vec![Vec::new(); RUNS],
         }
     }
 
@@ -142,18 +143,23 @@ impl<'a> PlainRuns<'a> {
             (false, _) => p.fixed_memory,
         };
         let flag: Vec<bool> = (0..RUNS).map(|l| count[l] >= memory(l)).collect();
-        // β decisions are drawn ahead: when a flag finds its lane without one, every lane
-        // without one gets one (a single draw); then γ for the lanes without a flag.
+        // β decisions are drawn ahead, two per lane: when a flag finds its lane without one,
+        // every lane without its next decision gets one (a single draw), then every lane
+        // without the one after gets that (a second draw); then γ for the lanes without a flag.
         let random = if random_block {
-            if (0..RUNS).any(|l| flag[l] && self.beta_ahead[l].is_none()) {
-                let used = from_lanes(|l| self.beta_ahead[l].is_none());
-                let drawn = self.rng.bernoulli(Portable, p.beta_thr, used);
-                for (l, d) in self.beta_ahead.iter_mut().enumerate() {
-                    d.get_or_insert(lane(&drawn, l));
+            if (0..RUNS).any(|l| flag[l] && self.beta_ahead[l].is_empty()) {
+                for want in 1..=2 {
+                    let short = from_lanes(|l| self.beta_ahead[l].len() < want);
+                    let drawn = self.rng.bernoulli(Portable, p.beta_thr, short);
+                    for (l, d) in self.beta_ahead.iter_mut().enumerate() {
+                        if d.len() < want {
+                            d.push(lane(&drawn, l));
+                        }
+                    }
                 }
             }
             let blocked: Vec<bool> = (0..RUNS)
-                .map(|l| flag[l] && self.beta_ahead[l].take().unwrap())
+                .map(|l| flag[l] && self.beta_ahead[l].remove(0))
                 .collect();
             from_lanes(|l| blocked[l])
         } else {
