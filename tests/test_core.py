@@ -122,11 +122,23 @@ def test_energy_ratio_exact():
     assert fa.energy_ratio(Fraction(10, 7) + Fraction(18, 7), 10, 3) == Fraction(1, 7)
     assert fa.energy_ratio("2.5", 4, 1) == Fraction(1, 2)
     assert fa.energy_ratio(0.3, 1, 0) == Fraction(3, 10)
-    for bad in [(3, 4, 3), (4, 4, 1), (5, 4, 1), (2, 4, -1)]:
-        with pytest.raises(ValueError):
+    # Each message names its argument, case and word exact (kills a renamed or dropped name);
+    # Delta = delta is refused before the division by Delta - delta (kills `<` turned `<=`).
+    for bad, message in [
+        ((3, 4, 3), r"^Psi must lie strictly between delta=3 and Delta=4"),
+        ((4, 4, 1), r"^Psi must lie strictly between"),
+        ((5, 4, 1), r"^Psi must lie strictly between"),
+        ((2, 4, -1), r"^delta must be non-negative"),
+        ((3, 3, 3), r"^Delta must exceed delta, got Delta=3, delta=3"),
+        ((3, "x", 1), r"^Delta: cannot parse"),
+    ]:
+        with pytest.raises(ValueError, match=message):
             fa.energy_ratio(*bad)
-    with pytest.raises(TypeError, match="Psi"):
-        fa.energy_ratio(None, 4, 1)
+    for i, name in enumerate(["Psi", "Delta", "delta"]):
+        args = [3, 4, 1]
+        args[i] = None
+        with pytest.raises(TypeError, match=rf"^{name} must be a rational number"):
+            fa.energy_ratio(*args)
 
 
 def test_offline_schedule_model_note_example():
@@ -203,6 +215,71 @@ def test_design_online_paper():
     assert fa.design_online(PAPER_LAM, PAPER_RATIO) == (2, 1.0)
     d = fa.design_online(0.5, Fraction(1, 10))
     assert d.z0 == 2 and 0 < d.mu < 1  # f(3, 1) = 1/15 < 1/10 < f(2, 1) = 1/7
+
+
+def _rate_fixed_memory(lam: Fraction, z: int) -> Fraction:
+    """f(z, 1) = λ a^z / (1 - a^(z+1)), a = 1 - λ: the high-power rate of a fixed memory z
+    (Model note 2), in exact arithmetic."""
+    a = 1 - lam
+    return lam * a**z / (1 - a ** (z + 1))
+
+
+def _rate_float(lam: float, z: int) -> float:
+    """f(z, 1) in floating point, as a float ratio would be given."""
+    ln_a = math.log1p(-lam)
+    return lam * math.exp(z * ln_a) / -math.expm1((z + 1) * ln_a)
+
+
+def _as_ratio(x: float) -> Fraction:
+    """The fraction nearest x with a denominator the package accepts (at most 2^62); it rounds
+    back to x."""
+    q = Fraction(x).limit_denominator(2**62)
+    assert float(q) == x
+    return q
+
+
+@pytest.mark.parametrize("z_target", [2_500, 4_000])
+def test_design_online_long_memory(z_target):
+    """Budgets so small that z0 exceeds the exact-arithmetic range (2000): the memory is the
+    bracket f(z0 + 1, 1) < ratio <= f(z0, 1), checked in exact arithmetic, and μ solves
+    f(z0, μ) = ratio (Model note 2's rate, written out here). Kills the float path's formula for
+    μ and its bracket (each operator and constant of `_largest_z_float` and the μ expression)."""
+    lam = 1e-3
+    lam_q = Fraction(lam)
+    a = 1 - lam_q
+    # A budget inside the bracket of z_target (between f(z + 1, 1) and f(z, 1), nearer the top).
+    ratio = _as_ratio(_rate_float(lam, z_target) * 0.9999 + _rate_float(lam, z_target + 1) * 0.0001)
+    z0, mu = fa.design_online(lam, ratio)
+    assert z0 == z_target
+    assert _rate_fixed_memory(lam_q, z0 + 1) < ratio <= _rate_fixed_memory(lam_q, z0)
+    assert 0.0 <= mu <= 1.0
+    m = Fraction(mu)
+    rate = lam_q * a**z0 * (m + (1 - m) * a) / (1 - m * a ** (z0 + 1) - (1 - m) * a ** (z0 + 2))
+    assert float(rate / ratio) == pytest.approx(1.0, abs=1e-9)
+
+
+@pytest.mark.parametrize("z", [2_048, 3_000])
+def test_design_online_long_memory_at_the_top_of_a_bracket(z):
+    """A budget exactly f(z, 1) in floating point gives memory z with μ = 1 (within rounding), not
+    z - 1 (kills the bisection's `>=` turned `>`; at z = 2048, a power of two, also the doubling
+    search's), and μ is clipped to at most 1 (the float formula overshoots by 1e-13 there)."""
+    lam = 1e-3
+    z0, mu = fa.design_online(lam, _as_ratio(_rate_float(lam, z)))
+    assert z0 == z
+    assert mu == pytest.approx(1.0, abs=1e-9) and mu <= 1.0
+
+
+def test_design_online_limits_are_inclusive():
+    """The largest budget, f(1, 1) = a / (1 + a) (1/3 at λ = 1/2), is allowed and gives (1, 1);
+    the longest memory, 10^6 steps, is allowed and one step more is refused (kills `>` turned `>=`
+    in both checks)."""
+    assert fa.design_online(0.5, Fraction(1, 3)) == (1, 1.0)
+    with pytest.raises(ValueError, match="ratio"):
+        fa.design_online(0.5, Fraction(1, 3) + Fraction(1, 10**9))
+    lam = 1e-5
+    assert fa.design_online(lam, _as_ratio(_rate_float(lam, 1_000_000))).z0 == 1_000_000
+    with pytest.raises(ValueError, match="memory"):
+        fa.design_online(lam, _as_ratio(_rate_float(lam, 1_000_002)))
 
 
 def test_online_beats_offline_random_systems():
