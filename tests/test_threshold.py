@@ -277,3 +277,51 @@ def test_infinite_j_max_limit():
     lam = 0.2  # (1 - lam) rho^2 = 1.152
     assert fa.j_attack_limit(s, lam, 2, 0.01) == math.inf
     assert math.isfinite(fa.j_attack(s, lam, 2, 40, 100))
+
+
+def test_worst_mask_limits(paper):
+    """The smallest search (z0 = 1, t = 1, nothing blocked) is the unattacked online cost; t = 24
+    is the largest exhaustive search allowed and 25 is refused; blocking every flag (blocked = t)
+    is refused (kills the bounds turned into `minimum=2`, `>= 24`, `> 25`, `minimum=1` and
+    `blocked > t`)."""
+    for z0, t in [(1, 1), (2, 4)]:
+        res = fa.worst_mask(paper, 0.5, z0, t, 0)
+        assert res.mask.tolist() == [0] * t
+        assert_allclose(res.j, fa.j_online(paper, 0.5, z0), rtol=1e-12)
+    res = fa.worst_mask(paper, 0.5, 2, 24, 1)
+    assert res.mask.sum() == 1 and res.mask.shape == (24,)
+    with pytest.raises(ValueError, match=r"^t must be at most 24"):
+        fa.worst_mask(paper, 0.5, 2, 25, 1)
+    with pytest.raises(ValueError, match=r"^blocked must be smaller than t = 3, got 3"):
+        fa.worst_mask(paper, 0.5, 2, 3, 3)
+
+
+def test_threshold_results_carry_their_inputs(paper):
+    """Defaults and echoed fields: beta_bar's t_max is 60 and beta_sweep's 1000 unless given;
+    the results carry λ, the ratio, the unattacked online cost and the schedule's (z0, μ); the
+    decision carries the budget it was asked about (kills each field replaced by None and each
+    default moved by one)."""
+    bb = fa.beta_bar(paper, PAPER_LAM, PAPER_RATIO)
+    assert bb.t_max == 60
+    assert_allclose(bb.j_online, fa.j_online(paper, PAPER_LAM, 2), rtol=1e-12)
+    assert (bb.z0, bb.mu) == (2, 1.0)
+    sw = fa.beta_sweep(paper, PAPER_LAM, PAPER_RATIO)
+    assert sw.t.max() == 1000 and sw.t.min() == 2
+    assert (sw.lam, sw.ratio, sw.z0, sw.mu) == (PAPER_LAM, PAPER_RATIO, 2, 1.0)
+    d = fa.choose_schedule(paper, PAPER_LAM, PAPER_RATIO, 0.25)
+    assert (d.beta, d.z0, d.mu) == (0.25, 2, 1.0)
+    # The shortest memory may be asked for (kills its lower bound raised to 2).
+    one = fa.beta_bar(paper, PAPER_LAM, PAPER_RATIO, z0=1)
+    assert (one.z0, one.mu) == (1, 1.0)
+    assert_allclose(one.j_online, fa.j_online(paper, PAPER_LAM, 1), rtol=1e-12)
+
+
+def test_beta_bar_finite_none_when_no_short_pattern_hurts(paper):
+    """With periods up to 2 the only attack is 1/2, and J(1, 2) < J_off on the paper's example:
+    no finite threshold (None, not an error). Up to 3 the candidates are 1/3, 1/2, 2/3 and only
+    2/3 reaches J_off (kills `finite` built from a missing first pattern)."""
+    joff = fa.j_offline(paper, PAPER_LAM, PAPER_RATIO)
+    j = {(r, t): fa.j_attack(paper, PAPER_LAM, 2, r, t) for r, t in [(1, 2), (1, 3), (2, 3)]}
+    assert j[(1, 2)] < joff and j[(1, 3)] < joff <= j[(2, 3)]
+    assert fa.beta_bar(paper, PAPER_LAM, PAPER_RATIO, t_max=2).finite is None
+    assert fa.beta_bar(paper, PAPER_LAM, PAPER_RATIO, t_max=3).finite == Fraction(2, 3)
