@@ -1,4 +1,5 @@
 import os
+import re
 import sys
 from fractions import Fraction
 from pathlib import Path
@@ -44,3 +45,10 @@ def random_system(rng, n, m=None, unstable=True):
     D = rng.standard_normal((m, m))
     R = D @ D.T / m + 0.2 * np.eye(m)
     return A, C, Q, R
+
+
+def names(argument: str) -> str:
+    """A `pytest.raises(match=...)` pattern for an error message naming `argument` as a word of
+    its own, case exact: "lam" matches "lam must be ..." but not "XXlamXX", "LAM" or "None"
+    (kills a mutated argument name in a message)."""
+    return rf"(?<![A-Za-z0-9_]){re.escape(argument)}(?![A-Za-z0-9_])"

@@ -8,6 +8,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 import fakeack as fa
+from conftest import names
 from reference import explore_mask_chain, stationary_dense, traces
 
 LAM, Z0 = 0.5, 2
@@ -44,7 +45,7 @@ def test_objects_are_frozen_hashable_and_readable():
     ((True, 5), TypeError, "r"),
 ])
 def test_periodic_rejects_bad_parameters(args, exc, name):
-    with pytest.raises(exc, match=name):
+    with pytest.raises(exc, match=names(name)):
         fa.PeriodicBlocking(*args)
 
 

@@ -14,7 +14,7 @@ from numpy.testing import assert_allclose
 
 import fakeack as fa
 import reference as ref
-from conftest import PAPER_LAM, PAPER_RATIO, random_system
+from conftest import PAPER_LAM, PAPER_RATIO, names, random_system
 
 H, RUNS = 5000, 2000  # bias of J_H vs the stationary J is ~1e-4 here, far below 4 standard errors
 
@@ -274,7 +274,7 @@ def test_progress_callback_error_cancels(paper, monkeypatch):
 def test_bad_input(paper, kw, exc, name):
     args = dict(horizon=10, runs=10)
     args.update(kw)
-    with pytest.raises(exc, match=name):
+    with pytest.raises(exc, match=names(name)):
         fa.simulate(paper, 0.5, fa.OnlineSchedule(2), **args)
 
 

@@ -9,7 +9,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 import fakeack as fa
-from conftest import random_system
+from conftest import names, random_system
 from reference import explore_any_chain, stationary_power, traces
 
 LAM, Z0 = 0.5, 2
@@ -143,5 +143,5 @@ def test_spellings():
      ValueError, "betas"),
 ])
 def test_bad_input(make, exc, name):
-    with pytest.raises(exc, match=name):
+    with pytest.raises(exc, match=names(name)):
         make()

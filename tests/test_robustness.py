@@ -11,7 +11,7 @@ from numpy.testing import assert_allclose
 
 import fakeack as fa
 import reference as ref
-from conftest import FUZZ, random_system
+from conftest import FUZZ, names, random_system
 
 FAST = settings(max_examples=40 * FUZZ, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -152,7 +152,7 @@ BAD = [
     (lambda s: fa.j_online(s, 0.5, 2**80), ValueError, "z0"),
     (lambda s: fa.j_online(s, 0.5, 10**12), ValueError, "z0"),
     (lambda s: fa.j_online(s, 0.5, 2, mu=float("inf")), ValueError, "mu"),
-    (lambda s: fa.j_online("system", 0.5, 2), TypeError, "s"),
+    (lambda s: fa.j_online("system", 0.5, 2), TypeError, "system"),
     (lambda s: fa.j_attack(s, 0.5, 2, 5, 5), ValueError, "r"),
     (lambda s: fa.j_attack(s, 0.5, 2, -1, 5), ValueError, "r"),
     (lambda s: fa.j_attack(s, 0.5, 2, 10**9, 10**9 + 1), ValueError, "r"),
@@ -163,6 +163,10 @@ BAD = [
     (lambda s: fa.offline_schedule(Fraction(1, 10**30)), ValueError, "ratio"),
     (lambda s: fa.j_offline(s, 0.5, Fraction(3, 2)), ValueError, "ratio"),
     (lambda s: fa.j_offline(s, 0.5, Fraction(1, 10**15)), ValueError, "ratio"),
+    (lambda s: fa.j_offline(s, 1.5, Fraction(1, 7)), ValueError, "lam"),
+    (lambda s: fa.j_max(s, -0.5), ValueError, "lam"),
+    (lambda s: fa.design_online(0.5, Fraction(3, 2)), ValueError, "ratio"),
+    (lambda s: fa.design_online(2.0, Fraction(1, 7)), ValueError, "lam"),
     (lambda s: fa.h_traces if False else s.h_traces(10**12), ValueError, "n"),
     (lambda s: s.h_traces(-1), ValueError, "n"),
     (lambda s: fa.stationary_distribution(0.5, 2, 10**5, 10**5 + 1), ValueError, "refused"),
@@ -173,7 +177,7 @@ BAD = [
 
 @pytest.mark.parametrize("call, exc, name", BAD)
 def test_bad_input(paper, call, exc, name):
-    with pytest.raises(exc, match=name):
+    with pytest.raises(exc, match=names(name)):
         call(paper)
 
 

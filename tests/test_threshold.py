@@ -10,7 +10,7 @@ from numpy.testing import assert_allclose
 
 import fakeack as fa
 import reference as ref
-from conftest import PAPER_LAM, PAPER_RATIO, random_system
+from conftest import PAPER_LAM, PAPER_RATIO, names, random_system
 
 
 def j_by_general_chain(s, lam, z0, mask, mu):
@@ -268,7 +268,7 @@ def test_consecutive_is_worst_compares_the_two_costs(paper, monkeypatch):
     (lambda s: fa.beta_bar(s, 0.5, Fraction(1, 2)), ValueError, "ratio"),
 ])
 def test_bad_input(paper, call, exc, name):
-    with pytest.raises(exc, match=name):
+    with pytest.raises(exc, match=names(name)):
         call(paper)
 
 
