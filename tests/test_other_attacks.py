@@ -145,3 +145,38 @@ def test_spellings():
 def test_bad_input(make, exc, name):
     with pytest.raises(exc, match=names(name)):
         make()
+
+
+def test_other_attack_results_carry_their_inputs(paper):
+    """Each result echoes what it was computed for, and μ and z0 reach the core: the energy per
+    step is δ + (Δ - δ) f with f the high-power rate at that μ; beta_bar_random at an explicit
+    (z0, μ) differs from the designed schedule's; the sweep carries its β grid, γ, z0, μ and λ
+    (kills each argument or field dropped or replaced by None)."""
+    rate = fa.high_power_rate(0.5, 2, fa.RandomBlocking(0.2), mu=0.4)
+    assert fa.energy_per_step(0.5, 2, 10, 3, fa.RandomBlocking(0.2), mu=0.4) == pytest.approx(
+        3 + 7 * rate, rel=1e-15
+    )
+    assert rate != fa.high_power_rate(0.5, 2, fa.RandomBlocking(0.2))
+    designed = fa.beta_bar_random(paper, 0.5, Fraction(1, 7))
+    assert fa.beta_bar_random(paper, 0.5, Fraction(1, 7), z0=2, mu=1.0) == designed  # (2, 1) is the design
+    assert fa.beta_bar_random(paper, 0.5, Fraction(1, 7), z0=3) != designed
+    assert fa.beta_bar_random(paper, 0.5, Fraction(1, 7), z0=2, mu=0.5) != designed
+    sw = fa.random_blocking_sweep(paper, 0.5, 3, [0.1, 0.2], mu=0.5, gamma=0.05)
+    assert sw.beta.tolist() == [0.1, 0.2] and sw.beta.dtype == np.float64
+    assert (sw.gamma, sw.z0, sw.mu, sw.lam) == (0.05, 3, 0.5, 0.5)
+
+
+def test_other_attack_budgets_at_their_ends(paper):
+    """Closed ranges: the rate-matching attack exists for β = 0 (nothing blocked, nothing forged)
+    and β = 1; δ = 0 is a valid low power; Δ = δ is refused; a sweep given the integer budgets
+    0 and 1 gives J_on and J_max (kills the closed interval opened, the bounds moved and the
+    grid left in integers)."""
+    sw = fa.random_blocking_sweep(paper, 0.5, 2, [0, 1])
+    assert sw.beta.dtype == np.float64
+    assert_allclose(sw.j_attack, [fa.j_online(paper, 0.5, 2), fa.j_max(paper, 0.5)], rtol=1e-12)
+    assert fa.rate_matching_attack(0.5, 2, 0).gamma == 0.0
+    assert 0 < fa.rate_matching_attack(0.5, 2, 1).gamma < 1
+    f = fa.high_power_rate(0.5, 2)
+    assert fa.energy_per_step(0.5, 2, 1, 0) == pytest.approx(f, rel=1e-15)
+    with pytest.raises(ValueError, match=names("Delta")):
+        fa.energy_per_step(0.5, 2, 3, 3)
