@@ -183,3 +183,50 @@ def test_size_limits():
         fa.stationary_distribution(0.5, z0, r, t)
     paper = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
     assert math.isfinite(fa.j_attack(paper, 0.5, z0, r, t))  # O(r z0): no vector needed
+
+
+def test_system_matrices_are_read_only_and_from_statespace_passes_its_solver_options():
+    """A system's matrices cannot be changed behind its P̄ (kills `write=False` turned True);
+    `from_statespace` hands `tol` and `max_iter` on (kills either dropped: one iteration must
+    fail, and a loose tolerance must stop the doubling sooner)."""
+    control = pytest.importorskip("control")
+    s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+    for name in "ACQR":
+        with pytest.raises(ValueError, match="read-only"):
+            getattr(s, name)[0, 0] = 2.0
+    plant = control.ss(1.2, 1, 0.7, 0, dt=True)
+    with pytest.raises(fa.ConvergenceError):
+        fa.LinearSystem.from_statespace(plant, Q=0.8, R=0.8, max_iter=1)
+    tight = fa.LinearSystem.from_statespace(plant, Q=0.8, R=0.8)
+    loose = fa.LinearSystem.from_statespace(plant, Q=0.8, R=0.8, tol=1e-2)
+    assert loose.iterations < tight.iterations
+
+
+@pytest.mark.parametrize("T, message", [
+    (np.ones((2, 3)) / 3, "non-empty square"),
+    (np.zeros((0, 0)), "non-empty square"),
+    (np.ones((1, 1, 1)), None),
+    (np.array([[1.5, -0.5], [0.5, 0.5]]), "non-negative"),
+    (np.array([[np.nan, 1.0], [0.5, 0.5]]), "finite"),
+    (np.array([[0.5, 0.5 + 2e-10], [0.5, 0.5]]), "row-stochastic"),
+])
+def test_stationary_gth_checks_its_matrix(T, message):
+    """Each defect of T is refused with its reason (kills each clause of the checks turned into
+    another, or dropped); zero entries and a single state are valid (kills `< 0` turned `<= 0`
+    and the empty check turned `== 1`)."""
+    with pytest.raises((ValueError, TypeError), match=message):
+        fa.stationary_gth(T)
+
+
+def test_stationary_gth_of_the_smallest_chains():
+    """One state; a zero entry, dense or stored explicitly in a sparse T (valid: only negative
+    entries are refused); rows off by less than the 1e-10 tolerance."""
+    import scipy.sparse as sp
+
+    assert fa.stationary_gth(np.array([[1.0]])).tolist() == [1.0]
+    stored_zero = sp.csr_array((np.array([0.0, 1.0, 1.0]), np.array([0, 1, 0]), np.array([0, 2, 3])))
+    assert_allclose(fa.stationary_gth(stored_zero), [0.5, 0.5], rtol=1e-15)
+    pi = fa.stationary_gth(np.array([[0.0, 1.0], [0.5, 0.5]]))
+    assert_allclose(pi, [1 / 3, 2 / 3], rtol=1e-15)
+    pi = fa.stationary_gth(np.array([[0.5, 0.5 + 5e-11], [0.5, 0.5]]))
+    assert_allclose(pi, [0.5, 0.5], atol=1e-10)
