@@ -372,3 +372,20 @@ def test_example_config_shows_the_game_commented(capsys):
     assert main(["analyze", "--example"]) == 0
     text = capsys.readouterr().out
     assert "# [game]" in text and "# alphas = [0.01, 0.05]" in text
+
+
+def test_ratio_estimator_and_its_standard_error():
+    """The closed-loop alarm and fall-back rates are ratio estimators Σ num / Σ den over runs
+    with the delta-method error sqrt(n s²) / Σ den, s² the sample variance (n - 1) of
+    num - r den. By hand: num = (1, 2, 4), den = (1, 1, 2) give r = 7/4, residuals
+    (-3/4, 1/4, 1/2), s² = 7/16, error sqrt(21/16) / 4; two runs (1, 3) over (1, 1) give r = 2
+    and error 1; one run has an infinite error; no tested window at all gives NaN (kills each
+    operator and bound of `_ratio_se`)."""
+    from fakeack.game import _ratio_se
+
+    r, se = _ratio_se(np.array([1.0, 2.0, 4.0]), np.array([1.0, 1.0, 2.0]))
+    assert r == 1.75 and se == pytest.approx(math.sqrt(21 / 16) / 4, rel=1e-15)
+    assert _ratio_se(np.array([1.0, 3.0]), np.array([1.0, 1.0])) == pytest.approx((2.0, 1.0), rel=1e-15)
+    assert _ratio_se(np.array([3.0]), np.array([1.0])) == (3.0, math.inf)
+    r, se = _ratio_se(np.array([0.0, 0.0]), np.array([0.0, 0.0]))
+    assert math.isnan(r) and math.isnan(se)
