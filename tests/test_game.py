@@ -389,3 +389,56 @@ def test_ratio_estimator_and_its_standard_error():
     assert _ratio_se(np.array([3.0]), np.array([1.0])) == (3.0, math.inf)
     r, se = _ratio_se(np.array([0.0, 0.0]), np.array([0.0, 0.0]))
     assert math.isnan(r) and math.isnan(se)
+
+
+def test_payoff_with_a_mixed_memory(paper):
+    """The game at a budget whose schedule mixes memories (ratio 1/10: z0 = 2, μ = 5/11), so μ
+    must reach every part: the attacked cost and energy, the alarm probability of the count test
+    (any alarm, and harmful alarms with β̄ at that μ) and the renewal average
+    J = (J_att + d K J_off) / (1 + d K), online share 1 / (1 + d K), energy mixed the same way;
+    the offline policy and the untested online schedule at their ends (kills μ dropped anywhere,
+    and the payoff's fields replaced or swapped)."""
+    ratio, n, k = Fraction(1, 10), 1000, 2
+    z0, mu = fa.design_online(0.5, ratio)
+    assert (z0, mu) == (2, pytest.approx(5 / 11, rel=1e-15))
+    attack = fa.RandomBlocking(0.3)
+    j_att = fa.j_attack(paper, 0.5, z0, attack=attack, mu=mu)
+    hp_att = fa.high_power_rate(0.5, z0, attack, mu)
+    j_off = fa.j_offline(paper, 0.5, ratio)
+    bb = fa.choose_schedule(paper, 0.5, ratio, 0, z0=z0, mu=mu).beta_bar
+    for rule, beta_bar in [("any", None), ("harmful", bb)]:
+        g = fa.game_payoff(paper, 0.5, ratio, fa.SensorPolicy("count", 0.01, k, rule=rule), attack, n)
+        d = fa.detection_probability(0.5, z0, attack, n, 0.01, "count", mu=mu, beta_bar=beta_bar)
+        assert g.detection == pytest.approx(d, rel=1e-12)
+        assert (g.j_attack, g.j_offline) == pytest.approx((j_att, j_off), rel=1e-12)
+        assert g.online == pytest.approx(1 / (1 + d * k), rel=1e-12)
+        assert g.j == pytest.approx((j_att + d * k * j_off) / (1 + d * k), rel=1e-12)
+        assert g.high_power == pytest.approx(g.online * hp_att + (1 - g.online) * 0.1, rel=1e-12)
+    off = fa.game_payoff(paper, 0.5, ratio, fa.SensorPolicy("offline"), attack, n)
+    assert (off.j, off.high_power, off.detection, off.online) == pytest.approx((j_off, 0.1, 0, 0))
+    assert (off.j_attack, off.j_offline) == pytest.approx((j_att, j_off), rel=1e-12)
+    never = fa.game_payoff(paper, 0.5, ratio, fa.SensorPolicy("never"), None, n)
+    assert never.j == pytest.approx(fa.j_online(paper, 0.5, z0, mu), rel=1e-12)
+    assert (never.high_power, never.detection, never.online) == pytest.approx((0.1, 0, 1), rel=1e-12)
+
+
+def test_payoff_beside_an_infinite_offline_cost(paper):
+    """At λ = 1/4 and a budget of 1/16384 the offline schedule's cost is beyond the double range
+    (inf) while the online one is finite: a sensor that never falls back pays J_on, not
+    0 · inf = NaN (kills the online-only branch of the renewal average removed or moved)."""
+    ratio = Fraction(1, 16384)
+    assert fa.j_offline(paper, 0.25, ratio) == math.inf
+    z0, mu = fa.design_online(0.25, ratio)
+    never = fa.game_payoff(paper, 0.25, ratio, fa.SensorPolicy("never"), None, 1000)
+    assert never.j == pytest.approx(fa.j_online(paper, 0.25, z0, mu), rel=1e-12)
+
+
+def test_payoff_with_a_given_threshold(paper):
+    """A harmful-alarm sensor given β̄ explicitly uses it, not its own (kills the argument
+    dropped)."""
+    attack = fa.RandomBlocking(0.3)
+    policy = fa.SensorPolicy("count", 0.01, 2, rule="harmful")
+    own = fa.game_payoff(paper, 0.5, Fraction(1, 7), policy, attack, 1000)
+    given = fa.game_payoff(paper, 0.5, Fraction(1, 7), policy, attack, 1000, beta_bar=0.05)
+    d = fa.detection_probability(0.5, 2, attack, 1000, 0.01, "count", beta_bar=0.05)
+    assert given.detection == pytest.approx(d, rel=1e-12) and given.detection != own.detection
