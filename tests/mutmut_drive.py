@@ -9,7 +9,7 @@ children that run pytest's default run loop:
      test using the fixture);
   2. one child per mutant, MUTANT_UNDER_TEST=<key>, running (-x) only the selected tests that call
      the mutated function ("no tests" if none does).
-Results in $MUTMUT_OUT/mm2_drive_<module>.json (default /tmp): key -> [exit code | "timeout" | "no tests", seconds].
+Results in $MUTMUT_OUT/mutmut_drive_<module>.json (default /tmp): key -> [exit code | "timeout" | "no tests", seconds].
 usage: MUTANTS_DIR=<work copy> python tests/mutmut_drive.py MODULE TIMEOUT_S [KEYS_FILE|-] -- pytest args..."""
 
 import json
@@ -35,10 +35,10 @@ keys = list(meta["exit_code_by_key"])
 if keys_file != "-":
     keys = [k for k in open(keys_file).read().split() if k]
 SUF = os.environ.get("OUT_SUFFIX", "")
-out_path = f"{OUT}/mm2_drive_{module}{SUF}.json"
-hits_path = f"{OUT}/mm2_hits_{module}{SUF}.json"
+out_path = f"{OUT}/mutmut_drive_{module}{SUF}.json"
+hits_path = f"{OUT}/mutmut_hits_{module}{SUF}.json"
 res = json.load(open(out_path)) if os.path.exists(out_path) else {}
-log = open(f"{OUT}/mm2_drive_{module}{SUF}.log", "a")
+log = open(f"{OUT}/mutmut_drive_{module}{SUF}.log", "a")
 
 
 def say(s):
