@@ -16,7 +16,11 @@
 //!   β on the paper's online schedule (λ = 0.5, z0 = 2, μ = 1 and 0.5), traces included;
 //! * `montecarlo/..`: `montecarlo::simulate`, covariance and state modes, paper's system, online
 //!   z0 = 2 under the attack "first 1 of every 5", and covariance mode under independent blocking
-//!   (β = 0.2) and forged flags (γ = 0.05); throughput in simulated steps (runs × horizon).
+//!   (β = 0.2) and forged flags (γ = 0.05); throughput in simulated steps (runs × horizon);
+//! * `game/..`: `LinearSystem::simulate_game`, the closed loop with the sensor's count test in it
+//!   (bounds at about 2.6 standard deviations of the attack-free count of a 1000-step window, two
+//!   offline windows after any alarm; offline schedule 1/7), under the attack "first 1 of every
+//!   5" and rate matching (β = 0.2, γ = 0.0365); throughput in simulated steps.
 //!
 //! Sample counts are criterion's minimum (10) with short measurement windows so that the whole file
 //! runs in a few minutes; the machine is usually shared, so read the numbers as indicative.
@@ -31,9 +35,12 @@ use criterion::{
 use nalgebra::DMatrix;
 
 use fakeack::chain::{self, AttackChain};
+use fakeack::montecarlo::game::{Detector, GameConfig, Policy};
 use fakeack::montecarlo::{self, McConfig, McSchedule, Mode, Protocol};
+use fakeack::online::OnlineDesign;
 use fakeack::pattern::Segments;
 use fakeack::rng::SplitMix64;
+use fakeack::schedules::{offline_schedule, Ratio};
 use fakeack::spectral::spectral_radius;
 use fakeack::LinearSystem;
 use fakeack::{stationary, sweep, Attack};
@@ -296,12 +303,62 @@ fn bench_montecarlo(c: &mut Criterion) {
     g.finish();
 }
 
+fn bench_game(c: &mut Criterion) {
+    let sys = paper_system();
+    let mut g = c.benchmark_group("game");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(4))
+        .sampling_mode(SamplingMode::Flat);
+    let design = OnlineDesign::fixed(2).expect("z0 >= 1");
+    let free = fakeack::flag_rates(LAM, design, None)
+        .expect("valid")
+        .delivered
+        * 1000.0;
+    let policy = Policy::Test {
+        detector: Detector::Count {
+            lo: (free - 40.0) as i64,
+            hi: (free + 40.0) as i64,
+        },
+        harmful_at_most: None,
+        fallback: 2,
+    };
+    let rate_matching =
+        Attack::injection(0.0365, Some(Attack::random(0.2).expect("beta"))).expect("gamma");
+    for (name, attack) in [
+        ("count_periodic1/5", Attack::periodic(1, 5).expect("r < t")),
+        ("count_rate_matching0.2", rate_matching),
+    ] {
+        let (runs, horizon) = (8_192u64, 20_000u64);
+        let cfg = GameConfig {
+            lam: LAM,
+            design,
+            offline: offline_schedule(Ratio::new(1, 7).expect("ratio")).expect("pattern"),
+            attack: Some(attack),
+            policy: policy.clone(),
+            window: 1000,
+            horizon,
+            burn_in: 0,
+            runs,
+            seed: 1,
+        };
+        g.throughput(Throughput::Elements(runs * horizon));
+        g.bench_with_input(
+            BenchmarkId::new(name, format!("{runs}x{horizon}")),
+            &cfg,
+            |b, cfg| b.iter(|| black_box(sys.simulate_game(cfg).unwrap().cost[0])),
+        );
+    }
+    g.finish();
+}
+
 criterion_group!(
     benches,
     bench_pbar,
     bench_stationary,
     bench_sweep,
     bench_random_sweep,
-    bench_montecarlo
+    bench_montecarlo,
+    bench_game
 );
 criterion_main!(benches);

@@ -47,9 +47,9 @@ use super::cpu::Avx2;
 use super::KernelFlags;
 use crate::error::Result;
 
-mod body;
-mod deep;
-mod words;
+pub(super) mod body;
+pub(super) mod deep;
+pub(super) mod words;
 
 use body::body;
 use words::Portable;

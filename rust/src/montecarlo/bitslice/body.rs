@@ -30,7 +30,7 @@ fn pick<const D: usize>(levels: &[W; D], sel: &[bool; D]) -> W {
 /// Advances a thermometer by one step: all levels clear where `reset`, else every lane moves
 /// one level up (`levels[j]` holds "≥ j + 1").
 #[inline(always)]
-fn step_up<const D: usize>(levels: &mut [W; D], reset: W) {
+pub(in crate::montecarlo) fn step_up<const D: usize>(levels: &mut [W; D], reset: W) {
     for j in (1..D).rev() {
         levels[j] = andnot(levels[j - 1], reset);
     }
@@ -150,7 +150,7 @@ fn attack<const PROTO_A: bool, const B: usize>(
 /// than a draw for each step's flags. Two planes, not one: a lane flags at most every z0 + 1
 /// steps, so with one decision a lane ran dry about every third step on the paper's example;
 /// with two, refills (two draws each) come less often: 3.7% fewer instructions in all.
-struct BetaPool {
+pub(in crate::montecarlo) struct BetaPool {
     /// Each lane's decision for its next flag (1 = block it), valid where `fresh`.
     next: W,
     /// Lanes whose `next` is drawn and not yet used.
@@ -163,7 +163,7 @@ struct BetaPool {
 
 impl BetaPool {
     /// No decision drawn yet.
-    const EMPTY: BetaPool = BetaPool {
+    pub(in crate::montecarlo) const EMPTY: BetaPool = BetaPool {
         next: ZERO,
         fresh: ZERO,
         spare: ZERO,
@@ -172,7 +172,13 @@ impl BetaPool {
 
     /// The decisions for this step's flags `flag` (1 = blocked), drawn with threshold `thr`.
     #[inline(always)]
-    fn take<S: StreamStepper>(&mut self, flag: W, rng: &mut Rng4, stepper: S, thr: u64) -> W {
+    pub(in crate::montecarlo) fn take<S: StreamStepper>(
+        &mut self,
+        flag: W,
+        rng: &mut Rng4,
+        stepper: S,
+        thr: u64,
+    ) -> W {
         if any(andnot(flag, self.fresh)) {
             // A draw is 0 outside the lanes it is made for, so OR-ing keeps the valid ones.
             let drawn = rng.bernoulli(stepper, thr, not(self.fresh));
@@ -331,7 +337,7 @@ impl<const D: usize> Tallies<D> {
         hi_last: u64,
     ) -> BsOut {
         BsOut {
-            sum: self.lane_sums(horizon, tr, top, deep),
+            sum: lane_sums(&self.levels[..top], horizon, tr, deep.map(|d| &*d.sum)),
             delivered: if record {
                 let (sent, lost) = (self.sent.counts(), self.lost.counts());
                 let forged = self.forged.counts();
@@ -345,35 +351,36 @@ impl<const D: usize> Tallies<D> {
             hi_last,
         }
     }
+}
 
-    /// Each lane's Σ_k `tr[τ_k]` over `horizon` steps from its histogram, in the order of the
-    /// per-step sums: the bins below `top`, then the last bin τ ≥ D (`top` = D) or the lane's
-    /// sum over its steps at or above `top` (`deep`).
-    fn lane_sums(
-        &self,
-        horizon: usize,
-        tr: &[f64; MAX_DEPTH + 1],
-        top: usize,
-        deep: Option<&DeepRuns>,
-    ) -> Vec<f64> {
-        let mut above = [horizon as u64; RUNS];
-        let mut sum = vec![0.0; RUNS];
-        for (j, c) in self.levels.iter().enumerate().take(top) {
-            for ((s, a), n) in sum.iter_mut().zip(above.iter_mut()).zip(c.counts()) {
-                let x = tr[j] * (*a - n) as f64;
-                *s += if *a != n { x } else { 0.0 };
-                *a = n;
-            }
+/// Each lane's Σ_k `tr[τ_k]` over `horizon` steps from its per-level counts (`levels[j]`: steps
+/// with τ ≥ j + 1), in the order of the per-step sums: the bins τ = 0..levels.len(), then the
+/// last bin τ ≥ levels.len() (`tr[levels.len()]` each) or, with `deep`, the lane's own sum over
+/// its steps there.
+pub(in crate::montecarlo) fn lane_sums(
+    levels: &[LaneCounter],
+    horizon: usize,
+    tr: &[f64],
+    deep: Option<&[f64; RUNS]>,
+) -> Vec<f64> {
+    let top = levels.len();
+    let mut above = [horizon as u64; RUNS];
+    let mut sum = vec![0.0; RUNS];
+    for (j, c) in levels.iter().enumerate() {
+        for ((s, a), n) in sum.iter_mut().zip(above.iter_mut()).zip(c.counts()) {
+            let x = tr[j] * (*a - n) as f64;
+            *s += if *a != n { x } else { 0.0 };
+            *a = n;
         }
-        for (l, (s, a)) in sum.iter_mut().zip(above).enumerate() {
-            let x = match deep {
-                Some(deep) => deep.sum[l],
-                None => tr[D] * a as f64,
-            };
-            *s += if a != 0 { x } else { 0.0 };
-        }
-        sum
     }
+    for (l, (s, a)) in sum.iter_mut().zip(above).enumerate() {
+        let x = match deep {
+            Some(deep) => deep[l],
+            None => tr[top] * a as f64,
+        };
+        *s += if a != 0 { x } else { 0.0 };
+    }
+    sum
 }
 
 /// The lanes of runs `0..active` (the rest of the block is padding).

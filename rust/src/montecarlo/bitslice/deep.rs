@@ -11,7 +11,7 @@
 use super::words::{any, RUNS, W, WORDS};
 
 /// The exact holding times of the lanes at or above the top level, and their sums.
-pub(super) struct DeepRuns {
+pub(in crate::montecarlo) struct DeepRuns {
     /// The top level L.
     level: u64,
     /// Lanes at or above L after the previous step.
@@ -19,12 +19,12 @@ pub(super) struct DeepRuns {
     /// Each lane's τ while at or above L.
     tau: Box<[u64; RUNS]>,
     /// Each lane's Σ `tr[τ]` over its steps at or above L.
-    pub(super) sum: Box<[f64; RUNS]>,
+    pub(in crate::montecarlo) sum: Box<[f64; RUNS]>,
 }
 
 impl DeepRuns {
     /// No lane at or above `level` yet (`level` >= 1).
-    pub(super) fn new(level: usize) -> Self {
+    pub(in crate::montecarlo) fn new(level: usize) -> Self {
         DeepRuns {
             level: level as u64,
             prev: [0; WORDS],
@@ -37,7 +37,7 @@ impl DeepRuns {
     /// the Σ of `tr[τ]` over those in `active`, in lane order (`None` if there are none).
     /// `tr` must not be empty.
     #[inline(always)]
-    pub(super) fn step(&mut self, now: W, active: W, tr: &[f64]) -> Option<f64> {
+    pub(in crate::montecarlo) fn step(&mut self, now: W, active: W, tr: &[f64]) -> Option<f64> {
         let prev = self.prev;
         self.prev = now;
         if !any(now) {

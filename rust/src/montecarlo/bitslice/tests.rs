@@ -5,18 +5,7 @@ use super::words::*;
 use super::*;
 use crate::montecarlo::cpu::Avx2;
 
-/// Bit `l` of a lane word.
-fn lane(w: &W, l: usize) -> bool {
-    (w[l / 64] >> (l % 64)) & 1 == 1
-}
-
-fn from_lanes(f: impl Fn(usize) -> bool) -> W {
-    let mut w = ZERO;
-    for l in 0..RUNS {
-        w[l / 64] |= u64::from(f(l)) << (l % 64);
-    }
-    w
-}
+pub(crate) use super::words::{from_lanes, lane};
 
 /// A Rng4 that records every word it hands out.
 struct Recorder {

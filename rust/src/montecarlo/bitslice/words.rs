@@ -60,6 +60,22 @@ pub(crate) fn splat(b: bool) -> W {
     [0u64.wrapping_sub(u64::from(b)); WORDS]
 }
 
+/// Bit `l` of a lane word.
+#[cfg(test)]
+pub(crate) fn lane(w: &W, l: usize) -> bool {
+    (w[l / 64] >> (l % 64)) & 1 == 1
+}
+
+/// The lane word whose bit l is `f(l)`.
+#[cfg(test)]
+pub(crate) fn from_lanes(f: impl Fn(usize) -> bool) -> W {
+    let mut w = ZERO;
+    for l in 0..RUNS {
+        w[l / 64] |= u64::from(f(l)) << (l % 64);
+    }
+    w
+}
+
 /// How [`Rng4`] steps its four streams: [`Portable`] on any CPU, or [`Avx2`] in AVX2 registers
 /// (the token proves the CPU's support). Both give the same words.
 pub(crate) trait StreamStepper: Copy {
@@ -282,6 +298,14 @@ impl LaneCounter {
             .enumerate()
             .map(|(weight, plane)| u64::from(popcount(and(*plane, lanes))) << weight)
             .sum()
+    }
+
+    /// Each lane's count as binary planes, least significant first (after a whole batch).
+    pub(crate) fn planes(&self) -> [W; 36] {
+        let mut out = [ZERO; 36];
+        out[..4].copy_from_slice(&[self.ones, self.twos, self.fours, self.eights]);
+        out[4..].copy_from_slice(&self.sixteens);
+        out
     }
 
     /// Every lane's count.

@@ -22,14 +22,25 @@
 //! [`crate::general::capped_attack_chain`], which the tests compare with.
 //!
 //! # Engineering
-//! Runs advance in lock-step tiles of [`LANES`]; tile b draws from SplitMix64 sub-stream
-//! (seed, b), one xoshiro256++ generator per lane, so each run's result depends on the seed and
-//! its index only, not on threads or on how many runs follow. Each step takes one 64-bit output
-//! per lane and splits it into four 16-bit slices for the step's four possible draws (arrival,
-//! memory length, block, forgery); a slice equal to the top 16 bits of the exact threshold
-//! ⌊p 2^64⌋ (probability 2^-16) is resolved with 48 further bits, so every draw is exactly
-//! Bernoulli(⌊p 2^64⌋ / 2^64). Tiles run in parallel (rayon) and are collected in order; the
-//! cancel flag is polled at every window (and every [`CHECK_STEPS`] steps).
+//! Two kernels, with the same protocol and different random streams (so one seed gives equally
+//! distributed, not equal, samples on the two):
+//!
+//! * The bit-sliced kernel (`sliced.rs`) takes every plan with a memory of at most 31 steps, an
+//!   interval test of at most 64 bins whose last edge is at most 64 steps, and a blocking mask
+//!   of at most 8 runs of ones: the paper's example and every game `fakeack` builds for it. Blocks of 256 runs are the bit lanes of four u64 words,
+//!   each per-run quantity a thermometer or binary bit-planes, as in the plain Monte Carlo's
+//!   bit-sliced kernel; block b draws from SplitMix64 sub-stream (seed, b), one xoshiro256++
+//!   generator per word, with bit-serial Bernoulli draws exact to 2^-64.
+//! * The lane kernel takes the rest. Runs advance in lock-step tiles of [`LANES`]; tile b draws
+//!   from SplitMix64 sub-stream (seed, b), one xoshiro256++ generator per lane. Each step takes
+//!   one 64-bit output per lane and splits it into four 16-bit slices for the step's four
+//!   possible draws (arrival, memory length, block, forgery); a slice equal to the top 16 bits
+//!   of the exact threshold ⌊p 2^64⌋ (probability 2^-16) is resolved with 48 further bits, so
+//!   every draw is exactly Bernoulli(⌊p 2^64⌋ / 2^64).
+//!
+//! Either way each run's result depends on the seed and its index only, not on threads or on
+//! how many runs follow. Blocks and tiles run in parallel (rayon) and are collected in order;
+//! the cancel flag is polled at every window (and every [`CHECK_STEPS`] steps).
 //!
 //! Holding times index a table of Tr h^τ(P̄) of length min(burn_in + horizon + 1,
 //! [`MAX_TRACE_TABLE`]); a longer τ (only possible past 16384 steps without an arrival) reads its
@@ -40,6 +51,8 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
+use super::bitslice::RUNS;
+use super::cpu::Avx2;
 use crate::attack::Attack;
 use crate::error::{Error, Result};
 use crate::online::{check_lam, OnlineDesign};
@@ -147,9 +160,11 @@ pub struct GameRuns {
 }
 
 mod plan;
+mod sliced;
 mod tile;
 
 use plan::Plan;
+use sliced::Sliced;
 use tile::{run_tile, Tile};
 
 impl GameConfig {
@@ -234,31 +249,72 @@ impl LinearSystem {
         cancel: &AtomicBool,
         progress: &AtomicU64,
     ) -> Result<GameRuns> {
+        self.simulate_game_on(cfg, cancel, progress, true)
+    }
+
+    /// [`LinearSystem::simulate_game_with`], on the bit-sliced kernel when `sliced` and the
+    /// plan fits it, else on the lane kernel.
+    pub(in crate::montecarlo) fn simulate_game_on(
+        &self,
+        cfg: &GameConfig,
+        cancel: &AtomicBool,
+        progress: &AtomicU64,
+        sliced: bool,
+    ) -> Result<GameRuns> {
         let plan = Plan::new(self, cfg)?;
+        let runs = cfg.runs as usize;
+        let h = cfg.horizon as f64;
+        let mut out = GameRuns::default();
+        let mut keep = |cost: f64, high: u64, online: u64, counts: [u64; 4]| {
+            if out.cost.len() < runs {
+                out.cost.push(cost / h);
+                out.high_power.push(high as f64 / h);
+                out.online.push(online as f64 / h);
+                out.tested.push(counts[0]);
+                out.alarms.push(counts[1]);
+                out.fallbacks.push(counts[2]);
+                out.delivered.push(counts[3]);
+            }
+        };
+        if let Some(s) = Sliced::of(&plan).filter(|_| sliced) {
+            let blocks = cfg.runs.div_ceil(RUNS as u64);
+            let avx2 = Avx2::detect();
+            let done = (0..blocks)
+                .into_par_iter()
+                .map(|b| {
+                    let out = sliced::run_block(&s, &plan, b, avx2, cancel)?;
+                    // The runs this block holds (the last may be partial).
+                    progress.fetch_add(
+                        (RUNS as u64).min(cfg.runs - b * RUNS as u64),
+                        Ordering::Relaxed,
+                    );
+                    Ok(out)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            for t in &done {
+                for l in 0..RUNS {
+                    let counts = [t.tested[l], t.alarms[l], t.fallbacks[l], t.delivered[l]];
+                    keep(t.cost[l], t.high[l], t.online_steps[l], counts);
+                }
+            }
+            return Ok(out);
+        }
         let tiles = cfg.runs.div_ceil(LANES as u64);
         let done: Vec<Tile> = (0..tiles)
             .into_par_iter()
             .map(|b| {
                 let t = run_tile(&plan, b, cancel)?;
-                progress.fetch_add(LANES as u64, Ordering::Relaxed);
+                progress.fetch_add(
+                    (LANES as u64).min(cfg.runs - b * LANES as u64),
+                    Ordering::Relaxed,
+                );
                 Ok(t)
             })
             .collect::<Result<Vec<_>>>()?;
-        let runs = cfg.runs as usize;
-        let h = cfg.horizon as f64;
-        let mut out = GameRuns::default();
         for t in &done {
             for l in 0..LANES {
-                if out.cost.len() == runs {
-                    break;
-                }
-                out.cost.push(t.cost[l] / h);
-                out.high_power.push(t.high[l] as f64 / h);
-                out.online.push(t.online_steps[l] as f64 / h);
-                out.tested.push(t.tested[l]);
-                out.alarms.push(t.alarms[l]);
-                out.fallbacks.push(t.fallbacks[l]);
-                out.delivered.push(t.delivered[l]);
+                let counts = [t.tested[l], t.alarms[l], t.fallbacks[l], t.delivered[l]];
+                keep(t.cost[l], t.high[l], t.online_steps[l], counts);
             }
         }
         Ok(out)

@@ -1,0 +1,646 @@
+//! The bit-sliced game kernel: the [`RUNS`] runs of a block are the bit lanes of four u64 words,
+//! as in the plain Monte Carlo's bit-sliced kernel, with the sensor's modes and tests in the loop.
+//!
+//! Per run, as bit-planes:
+//!
+//! * τ as a thermometer of D levels (`therm[j]`: τ ≥ j + 1), D = 8, 16 or 32 (see
+//!   [`Sliced::depth`]); the lanes with τ ≥ D keep their exact τ one by one (`DeepRuns`);
+//! * the detector's zero count as a thermometer of D levels (D ≥ z0 + 1, the count's largest
+//!   value), and the attacker's flag counter in binary planes (a blocking mask: "block" is the
+//!   counter in one of the mask's runs of ones) or its β decisions drawn ahead (`BetaPool`);
+//! * the mode: one word of online lanes; the offline lanes in classes by the step at which their
+//!   offline stretch began modulo the pattern's period, so one class shares one power per step
+//!   (a stretch starts at a window's end, so there are at most period / gcd(period, window));
+//!   the lanes that went offline at each of the last `fallback` window ends, to bring them back;
+//! * the gap since the last flag-ACK that reached the sensor as a thermometer up to the interval
+//!   test's last edge, which sorts each counted flag-ACK into its bin.
+//!
+//! Per-lane counts (steps with τ ≥ j, high-power steps, flag-ACKs delivered, and the window's
+//! count and bins) go through carry-save counters ([`LaneCounter`]), whose binary planes the
+//! count test compares with its bounds in a few word operations. The interval test reads each
+//! lane's bin counts and sums Pearson's X² lane by lane at the window's end.
+//!
+//! Draws per step, each only for the lanes that need it: λ (low-power lanes), μ (zero count
+//! exactly z0), β (when some flag finds its lane without a decision), γ (lanes without a flag).
+//! A draw with probability 1 hits every lane that needs it without drawing.
+
+use std::collections::VecDeque;
+use std::ops::Range;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use crate::montecarlo::cpu::Avx2;
+
+use super::plan::{Block, Plan};
+use super::{Detector, Policy, CHECK_STEPS};
+use crate::attack::Attack;
+use crate::error::{Error, Result};
+use crate::montecarlo::bitslice::body::{lane_sums, step_up, BetaPool};
+use crate::montecarlo::bitslice::deep::DeepRuns;
+use crate::montecarlo::bitslice::mask_runs;
+use crate::montecarlo::bitslice::words::{
+    and, andnot, equals, increment, less_than, not, or, LaneCounter, Portable, Rng4, StreamStepper,
+    BATCH, ONES, RUNS, W, ZERO,
+};
+use crate::rng::bernoulli_threshold;
+
+/// Largest zero-count memory (z0 + 1) and thermometer the kernel takes.
+const MAX_DEPTH: usize = 32;
+/// Most bins, and largest last edge, of an interval test the kernel takes.
+const MAX_GAP: usize = 64;
+/// Most runs of ones in a blocking mask.
+const MAX_MASK_RUNS: usize = 8;
+/// The thermometer stops at the smallest depth whose chance of being reached on a step, at most
+/// (1 - λ)^D, is below this.
+const DEEP_TAIL: f64 = 1.0 / 4096.0;
+
+/// A Bernoulli draw's threshold ⌊p 2^64⌋, or a sure hit.
+#[derive(Debug, Clone, Copy)]
+struct Draw {
+    thr: u64,
+    always: bool,
+}
+
+impl Draw {
+    fn new(p: f64) -> Self {
+        Draw {
+            thr: bernoulli_threshold(p),
+            always: p >= 1.0,
+        }
+    }
+
+    /// The draw for the lanes of `need` (0 elsewhere).
+    #[inline(always)]
+    fn hits<S: StreamStepper>(self, rng: &mut Rng4, stepper: S, need: W) -> W {
+        if self.always {
+            need
+        } else {
+            rng.bernoulli(stepper, self.thr, need)
+        }
+    }
+}
+
+/// The attacker's rule for genuine flags.
+#[derive(Debug, Clone)]
+enum Blocking {
+    None,
+    /// Blocked iff the counter lies in one of `runs`; the counter counts flags modulo `len`.
+    Mask {
+        runs: Vec<Range<u64>>,
+        len: u64,
+        bits: usize,
+    },
+    /// Blocked with probability β, independently.
+    Random(Draw),
+}
+
+/// A [`Plan`] in the form the bit-sliced kernel runs, when it fits.
+pub(super) struct Sliced {
+    lam: Draw,
+    /// μ's draw; `None` for the fixed memory z0 (μ = 1).
+    mu: Option<Draw>,
+    gamma: Option<Draw>,
+    blocking: Blocking,
+    z0: usize,
+    /// The thermometers' size.
+    depth: usize,
+    /// `tr[τ]` for τ = 0..depth (zeros where the run is too short to get there).
+    tr: Vec<f64>,
+    /// The interval test's bin edges minus one (thermometer levels); empty without it.
+    edges: Vec<usize>,
+}
+
+impl Sliced {
+    /// The kernel's form of `plan`, or `None` when the plan does not fit it (a memory deeper than
+    /// 32 steps, an interval test with more than 64 bins or a last edge beyond 64 steps, a
+    /// blocking mask with more than 8 runs of ones).
+    pub(super) fn of(plan: &Plan<'_>) -> Option<Self> {
+        let cfg = plan.cfg;
+        let z0 = usize::try_from(cfg.design.z0).ok()?;
+        if z0 + 1 > MAX_DEPTH {
+            return None;
+        }
+        let depth = [8, 16, MAX_DEPTH]
+            .into_iter()
+            .find(|&d| d > z0 && (1.0 - cfg.lam).powi(d as i32) <= DEEP_TAIL)
+            .unwrap_or(MAX_DEPTH);
+        let blocking = match &plan.block {
+            Block::None => Blocking::None,
+            Block::Random(_) => match cfg.attack.as_ref().and_then(Attack::genuine_blocking) {
+                Some(Attack::Random { beta }) => Blocking::Random(Draw::new(*beta)),
+                _ => return None,
+            },
+            Block::FirstR { r, t } => Blocking::Mask {
+                runs: if *r > 0 {
+                    std::iter::once(0..*r).collect()
+                } else {
+                    Vec::new()
+                },
+                len: *t,
+                bits: (64 - t.leading_zeros()) as usize,
+            },
+            Block::Mask(mask) => {
+                let runs = mask_runs(mask);
+                if runs.len() > MAX_MASK_RUNS {
+                    return None;
+                }
+                let len = mask.len() as u64;
+                Blocking::Mask {
+                    runs,
+                    len,
+                    bits: (64 - len.leading_zeros()) as usize,
+                }
+            }
+        };
+        let edges = match &cfg.policy {
+            Policy::Test {
+                detector: Detector::Interval { edges, .. },
+                ..
+            } => {
+                if edges.len() > MAX_GAP || *edges.last()? > MAX_GAP as u64 {
+                    return None;
+                }
+                edges.iter().map(|&e| e as usize - 1).collect()
+            }
+            _ => Vec::new(),
+        };
+        let gamma = cfg.attack.as_ref().map_or(0.0, Attack::forging);
+        Some(Sliced {
+            lam: Draw::new(cfg.lam),
+            mu: (cfg.design.mu < 1.0).then(|| Draw::new(cfg.design.mu)),
+            gamma: (gamma > 0.0).then(|| Draw::new(gamma)),
+            blocking,
+            z0,
+            depth,
+            tr: (0..depth)
+                .map(|j| plan.traces.get(j).copied().unwrap_or(0.0))
+                .collect(),
+            edges,
+        })
+    }
+}
+
+/// One block's per-lane results (all [`RUNS`] lanes; the caller keeps the active ones).
+pub(super) struct SlicedOut {
+    /// Σ Tr P_k over the measured steps.
+    pub(super) cost: Vec<f64>,
+    pub(super) high: [u64; RUNS],
+    pub(super) online_steps: [u64; RUNS],
+    pub(super) delivered: [u64; RUNS],
+    pub(super) tested: [u64; RUNS],
+    pub(super) alarms: [u64; RUNS],
+    pub(super) fallbacks: [u64; RUNS],
+}
+
+impl SlicedOut {
+    /// No cost, every count zero.
+    pub(super) const EMPTY: SlicedOut = SlicedOut {
+        cost: Vec::new(),
+        high: [0; RUNS],
+        online_steps: [0; RUNS],
+        delivered: [0; RUNS],
+        tested: [0; RUNS],
+        alarms: [0; RUNS],
+        fallbacks: [0; RUNS],
+    };
+}
+
+/// Runs block `block` of `plan` on AVX2 if given the token and the CPU has POPCNT, else
+/// portably (both give the same results).
+pub(super) fn run_block(
+    s: &Sliced,
+    plan: &Plan<'_>,
+    block: u64,
+    avx2: Option<Avx2>,
+    cancel: &AtomicBool,
+) -> Result<SlicedOut> {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(avx2) = avx2.filter(|_| is_x86_feature_detected!("popcnt")) {
+        // SAFETY: `avx2` is a token that only `Avx2::detect` makes, on a CPU with AVX2, and
+        // POPCNT was detected above: the two features `block_avx2` is compiled for.
+        return unsafe {
+            match s.depth {
+                8 => block_avx2::<8>(avx2, s, plan, block, cancel),
+                16 => block_avx2::<16>(avx2, s, plan, block, cancel),
+                _ => block_avx2::<MAX_DEPTH>(avx2, s, plan, block, cancel),
+            }
+        };
+    }
+    let _ = avx2;
+    match s.depth {
+        8 => Body::run::<8, _>(s, plan, block, cancel, Portable),
+        16 => Body::run::<16, _>(s, plan, block, cancel, Portable),
+        _ => Body::run::<MAX_DEPTH, _>(s, plan, block, cancel, Portable),
+    }
+}
+
+/// The kernel compiled for AVX2 and POPCNT: calling it is `unsafe` except from such code.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,popcnt")]
+fn block_avx2<const D: usize>(
+    avx2: Avx2,
+    s: &Sliced,
+    plan: &Plan<'_>,
+    block: u64,
+    cancel: &AtomicBool,
+) -> Result<SlicedOut> {
+    Body::run::<D, _>(s, plan, block, cancel, avx2)
+}
+
+/// Namespace of the kernel's body.
+struct Body;
+
+/// The offline lanes whose stretch began at a step ≡ `start` modulo the pattern's period.
+struct Class {
+    start: usize,
+    lanes: W,
+}
+
+/// Adds the first `n` words of `batch` to `counter` (the rest are cleared first).
+#[inline(always)]
+fn feed(counter: &mut LaneCounter, batch: &mut [W; BATCH], n: usize) {
+    batch[n..].fill(ZERO);
+    counter.add16(batch);
+}
+
+/// Lanes whose count (binary planes) is at most `c`.
+#[inline(always)]
+fn at_most(planes: &[W], c: i64) -> W {
+    if c < 0 {
+        ZERO
+    } else {
+        less_than(planes, c as u64 + 1)
+    }
+}
+
+/// Adds one to the per-lane totals `out` of the lanes in `lanes`.
+fn bump(out: &mut [u64; RUNS], lanes: W) {
+    for (w, word) in lanes.iter().enumerate() {
+        let mut bits = *word;
+        while bits != 0 {
+            out[64 * w + bits.trailing_zeros() as usize] += 1;
+            bits &= bits - 1;
+        }
+    }
+}
+
+/// Adds `n` to the per-lane totals `out` of the lanes in `lanes`.
+fn add(out: &mut [u64; RUNS], lanes: W, n: u64) {
+    for (l, o) in out.iter_mut().enumerate() {
+        *o += n * ((lanes[l / 64] >> (l % 64)) & 1);
+    }
+}
+
+/// The gap thermometer's step (`levels[j]`: gap ≥ j + 1): the gap is one more than after the
+/// last step, which cleared it where `reset` (a flag-ACK reached the sensor).
+#[inline(always)]
+fn gap_step(levels: &mut [W], reset: W) {
+    for j in (1..levels.len()).rev() {
+        levels[j] = andnot(levels[j - 1], reset);
+    }
+    if let Some(first) = levels.first_mut() {
+        *first = ONES;
+    }
+}
+
+/// A block's mutable state.
+struct State<const D: usize> {
+    rng: Rng4,
+    therm: [W; D],
+    zeros: [W; D],
+    sigma: Vec<W>,
+    beta: BetaPool,
+    pending: W,
+    gap: Vec<W>,
+    gap_reset: W,
+    online: W,
+    classes: Vec<Class>,
+    /// The lanes offline, by the index of the window at whose end they return online, in
+    /// increasing order.
+    returning: VecDeque<(u64, W)>,
+    phase: usize,
+    deep: DeepRuns,
+    levels: Box<[LaneCounter; D]>,
+    high: LaneCounter,
+    delivered: LaneCounter,
+    count: LaneCounter,
+    bins: Vec<LaneCounter>,
+    level_batch: Box<[[W; BATCH]; D]>,
+    high_batch: [W; BATCH],
+    delivered_batch: [W; BATCH],
+    count_batch: [W; BATCH],
+    bin_batch: Vec<[W; BATCH]>,
+    /// Steps in the current batch.
+    fill: usize,
+    out: SlicedOut,
+}
+
+impl Body {
+    #[inline(always)]
+    fn run<const D: usize, S: StreamStepper>(
+        s: &Sliced,
+        plan: &Plan<'_>,
+        block: u64,
+        cancel: &AtomicBool,
+        stepper: S,
+    ) -> Result<SlicedOut> {
+        let cfg = plan.cfg;
+        if s.depth != D || s.z0 + 1 > D {
+            return Err(Error::invalid(
+                "sys",
+                "plan too large for the bit-sliced kernel",
+            ));
+        }
+        let offline = matches!(cfg.policy, Policy::Offline);
+        let sigma_bits = match &s.blocking {
+            Blocking::Mask { bits, .. } => *bits,
+            _ => 0,
+        };
+        let bins = s.edges.len();
+        let mut st = State::<D> {
+            rng: Rng4::for_block(cfg.seed, block),
+            therm: [ZERO; D],
+            zeros: [ZERO; D],
+            sigma: vec![ZERO; sigma_bits],
+            beta: BetaPool::EMPTY,
+            // The paper's initial condition: high power at k = 1, as after a flag-ACK.
+            pending: ONES,
+            gap: vec![ZERO; s.edges.last().map_or(0, |&e| e + 1)],
+            gap_reset: ZERO,
+            online: if offline { ZERO } else { ONES },
+            classes: if offline {
+                vec![Class {
+                    start: 0,
+                    lanes: ONES,
+                }]
+            } else {
+                Vec::new()
+            },
+            returning: VecDeque::new(),
+            phase: 0,
+            deep: DeepRuns::new(D),
+            levels: Box::new([LaneCounter::NEW; D]),
+            high: LaneCounter::NEW,
+            delivered: LaneCounter::NEW,
+            count: LaneCounter::NEW,
+            bins: vec![LaneCounter::NEW; bins],
+            level_batch: Box::new([[ZERO; BATCH]; D]),
+            high_batch: [ZERO; BATCH],
+            delivered_batch: [ZERO; BATCH],
+            count_batch: [ZERO; BATCH],
+            bin_batch: vec![[ZERO; BATCH]; bins],
+            fill: 0,
+            out: SlicedOut::EMPTY,
+        };
+        // Windows run from the first step; the measurement starts after the burn-in, which may
+        // end inside a window.
+        let total = cfg.burn_in + cfg.horizon;
+        let (mut at, mut measuring) = (0u64, cfg.burn_in == 0);
+        let mut window_index = 0u64;
+        while at < total {
+            let end = (at + cfg.window).min(total);
+            let mut from = at;
+            if !measuring && end > cfg.burn_in {
+                st.steps(s, plan, cfg.burn_in - at, cancel, stepper)?;
+                st.flush();
+                st.start_measuring();
+                measuring = true;
+                from = cfg.burn_in;
+            }
+            st.steps(s, plan, end - from, cancel, stepper)?;
+            st.flush();
+            if measuring {
+                add(&mut st.out.online_steps, st.online, end - from);
+            }
+            if end - at == cfg.window {
+                st.end_window(plan, window_index, end, end > cfg.burn_in);
+                window_index += 1;
+            }
+            at = end;
+        }
+        let sums = lane_sums(
+            &st.levels[..],
+            cfg.horizon as usize,
+            &s.tr,
+            Some(&*st.deep.sum),
+        );
+        st.out.cost = sums;
+        st.out.high = st.high.counts();
+        st.out.delivered = st.delivered.counts();
+        Ok(st.out)
+    }
+}
+
+impl<const D: usize> State<D> {
+    /// `n` steps, polling `cancel` every [`CHECK_STEPS`].
+    #[inline(always)]
+    fn steps<S: StreamStepper>(
+        &mut self,
+        s: &Sliced,
+        plan: &Plan<'_>,
+        n: u64,
+        cancel: &AtomicBool,
+        stepper: S,
+    ) -> Result<()> {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(Error::Interrupted);
+        }
+        for k in 0..n {
+            if k % CHECK_STEPS == CHECK_STEPS - 1 && cancel.load(Ordering::Relaxed) {
+                return Err(Error::Interrupted);
+            }
+            self.step(s, plan, stepper);
+        }
+        Ok(())
+    }
+
+    /// One step of every lane.
+    #[inline(always)]
+    fn step<S: StreamStepper>(&mut self, s: &Sliced, plan: &Plan<'_>, stepper: S) {
+        let pattern = &plan.cfg.offline[..];
+        let mut high = and(self.online, self.pending);
+        for c in &self.classes {
+            let pos = if self.phase >= c.start {
+                self.phase - c.start
+            } else {
+                self.phase + pattern.len() - c.start
+            };
+            if pattern[pos] == 1 {
+                high = or(high, c.lanes);
+            }
+        }
+        self.phase += 1;
+        if self.phase == pattern.len() {
+            self.phase = 0;
+        }
+        let rng = &mut self.rng;
+        let arrive = or(high, s.lam.hits(rng, stepper, not(high)));
+        // τ and the zero count: 0 on arrival, else one more.
+        step_up(&mut self.therm, arrive);
+        let f = self.fill;
+        for j in 0..D {
+            self.level_batch[j][f] = self.therm[j];
+        }
+        self.deep.step(self.therm[D - 1], ZERO, &plan.traces);
+        step_up(&mut self.zeros, arrive);
+        let flag = match s.mu {
+            // z0 bits with probability μ (drawn only where the count is exactly z0), else z0 + 1.
+            Some(mu) => {
+                let long = self.zeros[s.z0];
+                or(
+                    long,
+                    mu.hits(rng, stepper, andnot(self.zeros[s.z0 - 1], long)),
+                )
+            }
+            None => self.zeros[s.z0 - 1],
+        };
+        // A flag resets the detector's memory.
+        for z in self.zeros.iter_mut() {
+            *z = andnot(*z, flag);
+        }
+        let blocked = match &s.blocking {
+            Blocking::None => ZERO,
+            Blocking::Mask { runs, len, .. } => {
+                let mut inside = ZERO;
+                for run in runs {
+                    let below_end = less_than(&self.sigma, run.end);
+                    inside = or(inside, andnot(below_end, less_than(&self.sigma, run.start)));
+                }
+                increment(&mut self.sigma, flag);
+                let wrap = equals(&self.sigma, *len);
+                for plane in self.sigma.iter_mut() {
+                    *plane = andnot(*plane, wrap);
+                }
+                and(inside, flag)
+            }
+            Blocking::Random(beta) if beta.always => flag,
+            Blocking::Random(beta) => self.beta.take(flag, rng, stepper, beta.thr),
+        };
+        let mut delivered = andnot(flag, blocked);
+        if let Some(gamma) = s.gamma {
+            delivered = or(delivered, gamma.hits(rng, stepper, not(flag)));
+        }
+        self.pending = delivered;
+        self.high_batch[f] = high;
+        self.delivered_batch[f] = delivered;
+        let counted = and(delivered, self.online);
+        self.count_batch[f] = counted;
+        if !s.edges.is_empty() {
+            // The gap since the last flag-ACK that reached the sensor, one more each step.
+            gap_step(&mut self.gap, self.gap_reset);
+            self.gap_reset = delivered;
+            for (i, &e) in s.edges.iter().enumerate() {
+                let above = s.edges.get(i + 1).map_or(ZERO, |&next| self.gap[next]);
+                self.bin_batch[i][f] = and(counted, andnot(self.gap[e], above));
+            }
+        }
+        self.fill += 1;
+        if self.fill == BATCH {
+            self.flush();
+        }
+    }
+
+    /// Adds the current batch to the counters.
+    fn flush(&mut self) {
+        let n = self.fill;
+        if n == 0 {
+            return;
+        }
+        for (c, b) in self.levels.iter_mut().zip(self.level_batch.iter_mut()) {
+            feed(c, b, n);
+        }
+        feed(&mut self.high, &mut self.high_batch, n);
+        feed(&mut self.delivered, &mut self.delivered_batch, n);
+        feed(&mut self.count, &mut self.count_batch, n);
+        for (c, b) in self.bins.iter_mut().zip(self.bin_batch.iter_mut()) {
+            feed(c, b, n);
+        }
+        self.fill = 0;
+    }
+
+    /// Forgets what the burn-in accumulated (the current window's flags stay: its test reads
+    /// the whole window).
+    fn start_measuring(&mut self) {
+        *self.levels = [LaneCounter::NEW; D];
+        self.high = LaneCounter::NEW;
+        self.delivered = LaneCounter::NEW;
+        self.deep.sum.fill(0.0);
+    }
+
+    /// The end of window `index` (its last step is `end` - 1): the online lanes' tests and the
+    /// mode switches; the test counts in the results when `counted`.
+    fn end_window(&mut self, plan: &Plan<'_>, index: u64, end: u64, counted: bool) {
+        if let Policy::Test {
+            detector,
+            harmful_at_most,
+            fallback,
+        } = &plan.cfg.policy
+        {
+            let tested = self.online;
+            let n = self.count.planes();
+            let alarm = match detector {
+                Detector::Count { lo, hi } => or(at_most(&n, *lo), not(at_most(&n, hi - 1))),
+                Detector::Interval {
+                    expected, critical, ..
+                } => {
+                    let mut x2 = [0.0f64; RUNS];
+                    for (e, c) in expected.iter().zip(&self.bins) {
+                        for (x, o) in x2.iter_mut().zip(c.counts()) {
+                            let d = o as f64 - e;
+                            *x += d * d / e;
+                        }
+                    }
+                    let mut alarm = ZERO;
+                    for (l, x) in x2.iter().enumerate() {
+                        alarm[l / 64] |= u64::from(*x > *critical) << (l % 64);
+                    }
+                    alarm
+                }
+            };
+            let alarm = and(alarm, tested);
+            let trigger = match harmful_at_most {
+                None => alarm,
+                Some(b) => and(alarm, at_most(&n, *b)),
+            };
+            if counted {
+                bump(&mut self.out.tested, tested);
+                bump(&mut self.out.alarms, alarm);
+                bump(&mut self.out.fallbacks, trigger);
+            }
+            if *fallback > 0 {
+                let back = match self.returning.front() {
+                    Some(&(at, lanes)) if at == index => {
+                        self.returning.pop_front();
+                        lanes
+                    }
+                    _ => ZERO,
+                };
+                if trigger != ZERO {
+                    self.returning
+                        .push_back((index.saturating_add(*fallback), trigger));
+                }
+                self.online = or(andnot(self.online, trigger), back);
+                self.classes.retain_mut(|c| {
+                    c.lanes = andnot(c.lanes, back);
+                    c.lanes != ZERO
+                });
+                if trigger != ZERO {
+                    let start = (end % plan.cfg.offline.len() as u64) as usize;
+                    match self.classes.iter_mut().find(|c| c.start == start) {
+                        Some(c) => c.lanes = or(c.lanes, trigger),
+                        None => self.classes.push(Class {
+                            start,
+                            lanes: trigger,
+                        }),
+                    }
+                }
+            }
+        }
+        self.count = LaneCounter::NEW;
+        for b in &mut self.bins {
+            *b = LaneCounter::NEW;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
