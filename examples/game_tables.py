@@ -18,7 +18,7 @@ LAM, RATIO, Z0 = 0.5, Fraction(1, 7), 2
 
 def detection() -> None:
     """Detection probability per window: formula against simulated stationary windows."""
-    n, alpha, runs = 1000, 0.01, 4000
+    n, alpha, runs = 1000, 0.01, 40_000
     print(f"detection per window of {n} steps at alpha = {alpha}: formula | simulated ({runs} windows)")
     attacks = [None, fa.PeriodicBlocking(1, 5), fa.PeriodicBlocking(3, 20), fa.RandomBlocking(0.2),
                fa.FlagInjection(0.02), fa.rate_matching_attack(LAM, Z0, 0.2),
@@ -55,7 +55,7 @@ def windows() -> None:
     for pol, att in pairs:
         for n in (100, 300, 1000, 3000, 10_000):
             p = fa.game_payoff(SYSTEM, LAM, RATIO, pol, att, n)
-            g = fa.simulate_game(SYSTEM, LAM, RATIO, pol, att, 200 * n, 64, seed=3, n_steps=n,
+            g = fa.simulate_game(SYSTEM, LAM, RATIO, pol, att, 210 * n, 1024, seed=3, n_steps=n,
                                  burn_in=20 * n)
             print(f"| {pol} | {att} | {n} | {p.j:.4f} | {g.j:.4f} ± {g.stderr:.4f} | "
                   f"{g.j - p.j:+.4f} | {p.detection:.3f} | {g.fallback_rate:.3f} |", flush=True)

@@ -120,7 +120,7 @@ DETECTION_CASES = [
 def test_detection_probability_against_simulated_windows(attack, test, alpha):
     # Attack-free, the critical values come from the null law itself: 40,000 windows. Under attack
     # the formula is a large-sample approximation, checked at the README's 4000 windows (at 40,000
-    # the interval test's shows a bias of up to 5%, about 4 standard errors there).
+    # the interval test's shows a bias of up to 6%, about 5 standard errors: README).
     n, runs = 1000, 40_000 if attack is None else 4000
     # detection_rates simulates attack-free windows beside; the attack-free case reads those.
     sim = fa.detection_rates(LAM, 2, attack or fa.PeriodicBlocking(0, 1), n, runs, alpha=alpha, seed=21,
@@ -169,7 +169,7 @@ def test_closed_loop_agrees_with_the_payoff(paper, policy, attack):
     # one fall-back window an even number of windows holds whole cycles.
     n = 10_000
     p = fa.game_payoff(paper, LAM, RATIO, policy, attack, n)
-    sim = fa.simulate_game(paper, LAM, RATIO, policy, attack, 100 * n, 32, seed=31, n_steps=n, burn_in=10 * n)
+    sim = fa.simulate_game(paper, LAM, RATIO, policy, attack, 100 * n, 256, seed=31, n_steps=n, burn_in=10 * n)
     assert abs(sim.j - p.j) < 4 * sim.stderr, (sim.j, sim.stderr, p.j)
     assert abs(sim.high_power - p.high_power) < 4 * sim.high_power_stderr + 2e-4
     if not policy.special:
