@@ -227,9 +227,9 @@ pub(super) fn run_block(
     }
     let _ = avx2;
     match s.depth {
-        8 => Body::run::<8, _>(s, plan, block, cancel, Portable),
-        16 => Body::run::<16, _>(s, plan, block, cancel, Portable),
-        _ => Body::run::<MAX_DEPTH, _>(s, plan, block, cancel, Portable),
+        8 => block_body::<8, _>(s, plan, block, cancel, Portable),
+        16 => block_body::<16, _>(s, plan, block, cancel, Portable),
+        _ => block_body::<MAX_DEPTH, _>(s, plan, block, cancel, Portable),
     }
 }
 
@@ -243,11 +243,8 @@ fn block_avx2<const D: usize>(
     block: u64,
     cancel: &AtomicBool,
 ) -> Result<SlicedOut> {
-    Body::run::<D, _>(s, plan, block, cancel, avx2)
+    block_body::<D, _>(s, plan, block, cancel, avx2)
 }
-
-/// Namespace of the kernel's body.
-struct Body;
 
 /// The offline lanes whose stretch began at a step ≡ `start` modulo the pattern's period.
 struct Class {
@@ -334,100 +331,100 @@ struct State<const D: usize> {
     out: SlicedOut,
 }
 
-impl Body {
-    #[inline(always)]
-    fn run<const D: usize, S: StreamStepper>(
-        s: &Sliced,
-        plan: &Plan<'_>,
-        block: u64,
-        cancel: &AtomicBool,
-        stepper: S,
-    ) -> Result<SlicedOut> {
-        let cfg = plan.cfg;
-        if s.depth != D || s.z0 + 1 > D {
-            return Err(Error::invalid(
-                "sys",
-                "plan too large for the bit-sliced kernel",
-            ));
-        }
-        let offline = matches!(cfg.policy, Policy::Offline);
-        let sigma_bits = match &s.blocking {
-            Blocking::Mask { bits, .. } => *bits,
-            _ => 0,
-        };
-        let bins = s.edges.len();
-        let mut st = State::<D> {
-            rng: Rng4::for_block(cfg.seed, block),
-            therm: [ZERO; D],
-            zeros: [ZERO; D],
-            sigma: vec![ZERO; sigma_bits],
-            beta: BetaPool::EMPTY,
-            // The paper's initial condition: high power at k = 1, as after a flag-ACK.
-            pending: ONES,
-            gap: vec![ZERO; s.edges.last().map_or(0, |&e| e + 1)],
-            gap_reset: ZERO,
-            online: if offline { ZERO } else { ONES },
-            classes: if offline {
-                vec![Class {
-                    start: 0,
-                    lanes: ONES,
-                }]
-            } else {
-                Vec::new()
-            },
-            returning: VecDeque::new(),
-            phase: 0,
-            deep: DeepRuns::new(D),
-            levels: Box::new([LaneCounter::NEW; D]),
-            high: LaneCounter::NEW,
-            delivered: LaneCounter::NEW,
-            count: LaneCounter::NEW,
-            bins: vec![LaneCounter::NEW; bins],
-            level_batch: Box::new([[ZERO; BATCH]; D]),
-            high_batch: [ZERO; BATCH],
-            delivered_batch: [ZERO; BATCH],
-            count_batch: [ZERO; BATCH],
-            bin_batch: vec![[ZERO; BATCH]; bins],
-            fill: 0,
-            out: SlicedOut::EMPTY,
-        };
-        // Windows run from the first step; the measurement starts after the burn-in, which may
-        // end inside a window.
-        let total = cfg.burn_in + cfg.horizon;
-        let (mut at, mut measuring) = (0u64, cfg.burn_in == 0);
-        let mut window_index = 0u64;
-        while at < total {
-            let end = (at + cfg.window).min(total);
-            let mut from = at;
-            if !measuring && end > cfg.burn_in {
-                st.steps(s, plan, cfg.burn_in - at, cancel, stepper)?;
-                st.flush();
-                st.start_measuring();
-                measuring = true;
-                from = cfg.burn_in;
-            }
-            st.steps(s, plan, end - from, cancel, stepper)?;
-            st.flush();
-            if measuring {
-                add(&mut st.out.online_steps, st.online, end - from);
-            }
-            if end - at == cfg.window {
-                st.end_window(plan, window_index, end, end > cfg.burn_in);
-                window_index += 1;
-            }
-            at = end;
-        }
-        let sums = lane_sums(
-            &st.levels[..],
-            cfg.horizon as usize,
-            &s.tr,
-            Some(&*st.deep.sum),
-        );
-        st.out.cost = sums;
-        st.out.high = st.high.counts();
-        st.out.delivered = st.delivered.counts();
-        Ok(st.out)
+/// The kernel's body: one block of [`RUNS`] runs on thermometers of D levels, its draws made
+/// by `stepper`.
+#[inline(always)]
+fn block_body<const D: usize, S: StreamStepper>(
+    s: &Sliced,
+    plan: &Plan<'_>,
+    block: u64,
+    cancel: &AtomicBool,
+    stepper: S,
+) -> Result<SlicedOut> {
+    let cfg = plan.cfg;
+    if s.depth != D || s.z0 + 1 > D {
+        return Err(Error::invalid(
+            "sys",
+            "plan too large for the bit-sliced kernel",
+        ));
     }
+    let offline = matches!(cfg.policy, Policy::Offline);
+    let sigma_bits = match &s.blocking {
+        Blocking::Mask { bits, .. } => *bits,
+        _ => 0,
+    };
+    let bins = s.edges.len();
+    let mut st = State::<D> {
+        rng: Rng4::for_block(cfg.seed, block),
+        therm: [ZERO; D],
+        zeros: [ZERO; D],
+        sigma: vec![ZERO; sigma_bits],
+        beta: BetaPool::EMPTY,
+        // The paper's initial condition: high power at k = 1, as after a flag-ACK.
+        pending: ONES,
+        gap: vec![ZERO; s.edges.last().map_or(0, |&e| e + 1)],
+        gap_reset: ZERO,
+        online: if offline { ZERO } else { ONES },
+        classes: if offline {
+            vec![Class {
+                start: 0,
+                lanes: ONES,
+            }]
+        } else {
+            Vec::new()
+        },
+        returning: VecDeque::new(),
+        phase: 0,
+        deep: DeepRuns::new(D),
+        levels: Box::new([LaneCounter::NEW; D]),
+        high: LaneCounter::NEW,
+        delivered: LaneCounter::NEW,
+        count: LaneCounter::NEW,
+        bins: vec![LaneCounter::NEW; bins],
+        level_batch: Box::new([[ZERO; BATCH]; D]),
+        high_batch: [ZERO; BATCH],
+        delivered_batch: [ZERO; BATCH],
+        count_batch: [ZERO; BATCH],
+        bin_batch: vec![[ZERO; BATCH]; bins],
+        fill: 0,
+        out: SlicedOut::EMPTY,
+    };
+    // Windows run from the first step; the measurement starts after the burn-in, which may
+    // end inside a window.
+    let total = cfg.burn_in + cfg.horizon;
+    let (mut at, mut measuring) = (0u64, cfg.burn_in == 0);
+    let mut window_index = 0u64;
+    while at < total {
+        let end = (at + cfg.window).min(total);
+        let mut from = at;
+        if !measuring && end > cfg.burn_in {
+            st.steps(s, plan, cfg.burn_in - at, cancel, stepper)?;
+            st.flush();
+            st.start_measuring();
+            measuring = true;
+            from = cfg.burn_in;
+        }
+        st.steps(s, plan, end - from, cancel, stepper)?;
+        st.flush();
+        if measuring {
+            add(&mut st.out.online_steps, st.online, end - from);
+        }
+        if end - at == cfg.window {
+            st.end_window(plan, window_index, end, end > cfg.burn_in);
+            window_index += 1;
+        }
+        at = end;
+    }
+    let sums = lane_sums(
+        &st.levels[..],
+        cfg.horizon as usize,
+        &s.tr,
+        Some(&*st.deep.sum),
+    );
+    st.out.cost = sums;
+    st.out.high = st.high.counts();
+    st.out.delivered = st.delivered.counts();
+    Ok(st.out)
 }
 
 impl<const D: usize> State<D> {
