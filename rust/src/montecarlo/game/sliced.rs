@@ -96,9 +96,10 @@ enum Blocking {
 /// A [`Plan`] in the form the bit-sliced kernel runs, when it fits.
 pub(super) struct Sliced {
     lam: Draw,
-    /// μ's draw; `None` for the fixed memory z0 (μ = 1).
-    mu: Option<Draw>,
-    gamma: Option<Draw>,
+    /// μ's draw (μ = 1, the fixed memory z0, draws nothing).
+    mu: Draw,
+    /// γ's draw (γ = 0, no forging, draws nothing).
+    gamma: Draw,
     blocking: Blocking,
     z0: usize,
     /// The thermometers' size.
@@ -130,11 +131,8 @@ impl Sliced {
                 _ => return None,
             },
             Block::FirstR { r, t } => Blocking::Mask {
-                runs: if *r > 0 {
-                    std::iter::once(0..*r).collect()
-                } else {
-                    Vec::new()
-                },
+                // r = 0 gives the empty run, which blocks nothing.
+                runs: std::iter::once(0..*r).collect(),
                 len: *t,
                 bits: (64 - t.leading_zeros()) as usize,
             },
@@ -156,7 +154,8 @@ impl Sliced {
                 detector: Detector::Interval { edges, .. },
                 ..
             } => {
-                if edges.len() > MAX_GAP || *edges.last()? > MAX_GAP as u64 {
+                // The edges increase from 1, so this bounds the bins too.
+                if *edges.last()? > MAX_GAP as u64 {
                     return None;
                 }
                 edges.iter().map(|&e| e as usize - 1).collect()
@@ -166,8 +165,8 @@ impl Sliced {
         let gamma = cfg.attack.as_ref().map_or(0.0, Attack::forging);
         Some(Sliced {
             lam: Draw::new(cfg.lam),
-            mu: (cfg.design.mu < 1.0).then(|| Draw::new(cfg.design.mu)),
-            gamma: (gamma > 0.0).then(|| Draw::new(gamma)),
+            mu: Draw::new(cfg.design.mu),
+            gamma: Draw::new(gamma),
             blocking,
             z0,
             depth,
@@ -479,17 +478,10 @@ impl<const D: usize> State<D> {
         }
         self.deep.step(self.therm[D - 1], ZERO, &plan.traces);
         step_up(&mut self.zeros, arrive);
-        let flag = match s.mu {
-            // z0 bits with probability μ (drawn only where the count is exactly z0), else z0 + 1.
-            Some(mu) => {
-                let long = self.zeros[s.z0];
-                or(
-                    long,
-                    mu.hits(rng, stepper, andnot(self.zeros[s.z0 - 1], long)),
-                )
-            }
-            None => self.zeros[s.z0 - 1],
-        };
+        // z0 bits with probability μ (drawn only where the count is exactly z0), else z0 + 1.
+        let long = self.zeros[s.z0];
+        let at_z0 = andnot(self.zeros[s.z0 - 1], long);
+        let flag = or(long, s.mu.hits(rng, stepper, at_z0));
         // A flag resets the detector's memory.
         for z in self.zeros.iter_mut() {
             *z = andnot(*z, flag);
@@ -512,10 +504,8 @@ impl<const D: usize> State<D> {
             Blocking::Random(beta) if beta.always => flag,
             Blocking::Random(beta) => self.beta.take(flag, rng, stepper, beta.thr),
         };
-        let mut delivered = andnot(flag, blocked);
-        if let Some(gamma) = s.gamma {
-            delivered = or(delivered, gamma.hits(rng, stepper, not(flag)));
-        }
+        let forged = s.gamma.hits(rng, stepper, not(flag));
+        let delivered = or(andnot(flag, blocked), forged);
         self.pending = delivered;
         self.high_batch[f] = high;
         self.delivered_batch[f] = delivered;

@@ -439,4 +439,45 @@ fn sliced_kernel_refuses_plans_beyond_its_limits() {
     assert!(fits(on(2).attack(runs(8))));
     assert!(!fits(on(2).attack(runs(9))));
     assert!(fits(on(2).policy(count(0, 9, None, u64::MAX))));
+    // 64 bins, the edges 1..=64.
+    let bins = Policy::Test {
+        detector: Detector::Interval {
+            edges: (1..=64).collect(),
+            expected: vec![1.0; 64],
+            critical: 1.0,
+        },
+        harmful_at_most: None,
+        fallback: 1,
+    };
+    assert!(fits(on(2).policy(bins)));
+}
+
+/// A window without flag-ACKs has a count of 0, which a lower bound of 0 flags: every flag is
+/// blocked (β = 1), so every tested window alarms, and every alarm is harmful at the bound 0.
+#[test]
+fn a_window_without_flags_is_at_the_lower_bound_zero() {
+    let sys = paper();
+    let c = game("no flags", 0.5, (2, 1.0), (10, 40, 0))
+        .attack(Attack::random(1.0).unwrap())
+        .policy(count(0, 1 << 40, Some(0), 0));
+    let plan = Plan::new(&sys, &c.cfg).unwrap();
+    let got = kernel(&plan, 0, None);
+    assert!(got.tested.iter().all(|&t| t == 4));
+    assert_eq!(got.alarms, got.tested);
+    assert_eq!(got.fallbacks, got.tested);
+}
+
+/// The thermometers hold the zero count up to z0 + 1, so a memory of 8 or 16 steps takes the next
+/// size even where the holding time would not need it (λ = 0.95).
+#[test]
+fn thermometers_hold_the_longest_memory() {
+    let sys = paper();
+    for (z0, depth) in [(7, 8), (8, 16), (15, 16), (16, 32)] {
+        let c = game("memory", 0.95, (z0, 1.0), (10, 20, 0));
+        let plan = Plan::new(&sys, &c.cfg).unwrap();
+        assert_eq!(Sliced::of(&plan).unwrap().depth, depth, "z0 = {z0}");
+        let got = kernel(&plan, 0, None);
+        let (want, _) = plain(&plan, depth, 0);
+        assert!(first_difference(&got, &want).is_none(), "z0 = {z0}");
+    }
 }
