@@ -481,3 +481,19 @@ fn thermometers_hold_the_longest_memory() {
         assert!(first_difference(&got, &want).is_none(), "z0 = {z0}");
     }
 }
+
+/// The body refuses a plan made for another thermometer size, or whose memory it cannot hold,
+/// instead of indexing beyond its levels (`run_block` never passes one).
+#[test]
+fn block_body_refuses_a_plan_of_another_size() {
+    let sys = paper();
+    let c = game("size", 0.95, (2, 1.0), (10, 20, 0));
+    let plan = Plan::new(&sys, &c.cfg).unwrap();
+    let mut s = Sliced::of(&plan).unwrap();
+    let cancel = AtomicBool::new(false);
+    assert!(block_body::<8, _>(&s, &plan, 0, &cancel, Portable).is_ok());
+    s.depth = 16;
+    assert!(block_body::<8, _>(&s, &plan, 0, &cancel, Portable).is_err());
+    (s.depth, s.z0) = (8, 8);
+    assert!(block_body::<8, _>(&s, &plan, 0, &cancel, Portable).is_err());
+}
