@@ -126,10 +126,11 @@ impl Sliced {
             .unwrap_or(MAX_DEPTH);
         let blocking = match &plan.block {
             Block::None => Blocking::None,
-            Block::Random(_) => match cfg.attack.as_ref().and_then(Attack::genuine_blocking) {
-                Some(Attack::Random { beta }) => Blocking::Random(Draw::new(*beta)),
-                _ => return None,
-            },
+            // The same exact threshold ⌊β 2^64⌋, split in the lane kernel's form.
+            Block::Random(b) => Blocking::Random(Draw {
+                thr: (b.hi << 48) | b.lo,
+                always: b.always,
+            }),
             Block::FirstR { r, t } => Blocking::Mask {
                 // r = 0 gives the empty run, which blocks nothing.
                 runs: std::iter::once(0..*r).collect(),
@@ -307,7 +308,6 @@ struct State<const D: usize> {
     beta: BetaPool,
     pending: W,
     gap: Vec<W>,
-    gap_reset: W,
     online: W,
     classes: Vec<Class>,
     /// The lanes offline, by the index of the window at whose end they return online, in
@@ -362,7 +362,6 @@ fn block_body<const D: usize, S: StreamStepper>(
         // The paper's initial condition: high power at k = 1, as after a flag-ACK.
         pending: ONES,
         gap: vec![ZERO; s.edges.last().map_or(0, |&e| e + 1)],
-        gap_reset: ZERO,
         online: if offline { ZERO } else { ONES },
         classes: if offline {
             vec![Class {
@@ -453,7 +452,9 @@ impl<const D: usize> State<D> {
     #[inline(always)]
     fn step<S: StreamStepper>(&mut self, s: &Sliced, plan: &Plan<'_>, stepper: S) {
         let pattern = &plan.cfg.offline[..];
-        let mut high = and(self.online, self.pending);
+        // A flag-ACK reached the sensor at the last step (the paper's k = 1 counts as one).
+        let last_delivered = self.pending;
+        let mut high = and(self.online, last_delivered);
         for c in &self.classes {
             let pos = if self.phase >= c.start {
                 self.phase - c.start
@@ -513,8 +514,8 @@ impl<const D: usize> State<D> {
         self.count_batch[f] = counted;
         if !s.edges.is_empty() {
             // The gap since the last flag-ACK that reached the sensor, one more each step.
-            gap_step(&mut self.gap, self.gap_reset);
-            self.gap_reset = delivered;
+            // A gap of 1 at the first step either way: the gap starts at 0, as after a flag-ACK.
+            gap_step(&mut self.gap, last_delivered);
             for (i, &e) in s.edges.iter().enumerate() {
                 let above = s.edges.get(i + 1).map_or(ZERO, |&next| self.gap[next]);
                 self.bin_batch[i][f] = and(counted, andnot(self.gap[e], above));
