@@ -81,7 +81,7 @@ def time_loop(s: fa.LinearSystem, n_cells: int, repeats: int) -> tuple[float, li
 
 def clear_designs() -> None:
     """Forget what a previous run cached (how each lam reads as a fraction), so every run starts cold."""
-    from fakeack._grid_design import _lam_parts
+    from fakeack.studies.grid.design import _lam_parts
 
     _lam_parts.cache_clear()
 

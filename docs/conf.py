@@ -57,16 +57,16 @@ numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = False
 numpydoc_validation_checks: set[str] = set()
 
-# Sections of the API page, by the module a name is defined in; a module not listed here gets a
-# section of its own, titled by the module's name.
+# Sections of the API page, by the subpackage a name is defined in; a subpackage not listed here gets
+# a section of its own, titled by its name.
 API_SECTIONS = {
-    "fakeack.system": "The system",
-    "fakeack.schedules": "Schedules and their costs",
-    "fakeack.attacks": "Attacks",
-    "fakeack.attack": "The attack chain and its stationary law",
-    "fakeack.threshold": "Thresholds, sweeps and the decision",
+    "fakeack.model": "The system and the schedules without attack",
+    "fakeack.attacks": "Attacks: the chain, costs, thresholds and the decision",
     "fakeack.montecarlo": "Monte Carlo and exact finite-horizon curves",
     "fakeack.detection": "Detecting an attack",
+    "fakeack.game": "The game with an attacker who must not be seen",
+    "fakeack.studies": "Parameter studies",
+    "fakeack.plots": "Figures",
     "constants": "Limits and exceptions",
 }
 
@@ -76,7 +76,7 @@ def _section_of(name: str) -> str:
     module = getattr(obj, "__module__", None) if (inspect.isclass(obj) or callable(obj)) else None
     if not module or not module.startswith("fakeack.") or module.startswith("fakeack._"):
         return "constants"
-    return module
+    return ".".join(module.split(".")[:2])
 
 
 def api_names() -> dict[str, list[str]]:

@@ -10,9 +10,8 @@ from numpy.testing import assert_allclose
 from scipy import integrate, stats
 
 import fakeack as fa
-from fakeack import _quadform
-from fakeack.detectors import count_alarm_bounds, harmful_count_bound, interval_test
-from fakeack.intervals import walk
+from fakeack.detection import _quadform, count_alarm_bounds, harmful_count_bound, interval_test
+from fakeack.detection.intervals import walk
 
 ATTACKS = [
     None,
@@ -299,7 +298,7 @@ def test_detection_probability_by_monte_carlo_of_the_normal_model():
     # and the harmful joint probability against the same samples.
     att = fa.PeriodicBlocking(1, 5)
     t = interval_test(0.5, 2, 1000, 0.01)
-    from fakeack.detectors import _attack_form, _joint_tail
+    from fakeack.detection.probability import _attack_form, _joint_tail
 
     mean, cov = _attack_form(t, att)
     rng = np.random.default_rng(3)

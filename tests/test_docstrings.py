@@ -25,11 +25,20 @@ def test_classes_documented():
             assert inspect.getdoc(obj), n
 
 
-@pytest.mark.parametrize("module", ["system", "schedules", "montecarlo"])
+DOCTEST_MODULES = [
+    "attacks.chain", "attacks.kinds", "attacks.random", "attacks.rates", "detection.flags",
+    "detection.interval_test", "detection.intervals", "detection.probability", "game.policies",
+    "model.schedules", "model.system",
+]
+
+
+@pytest.mark.parametrize("module", DOCTEST_MODULES)
 def test_docstring_examples_run(module):
+    """Every example in a docstring runs, with the public names of ``fakeack`` in scope."""
     import doctest
     import importlib
 
     mod = importlib.import_module(f"fakeack.{module}")
-    result = doctest.testmod(mod, optionflags=doctest.ELLIPSIS)
+    scope = {n: getattr(fa, n) for n in fa.__all__}
+    result = doctest.testmod(mod, extraglobs=scope, optionflags=doctest.ELLIPSIS)
     assert result.failed == 0 and result.attempted > 0

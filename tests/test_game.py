@@ -186,7 +186,7 @@ def test_closed_loop_is_seeded(paper):
 
 
 def test_closed_loop_ctrl_c(paper, monkeypatch):
-    import fakeack.game as game
+    import fakeack.game.simulate as game
 
     fired = {}
 
@@ -194,13 +194,13 @@ def test_closed_loop_ctrl_c(paper, monkeypatch):
         fired["t"] = time.monotonic()
         os.kill(os.getpid(), signal.SIGINT)
 
-    class SignalOnFirstReport(game._Progress):
+    class SignalOnFirstReport(game.Progress):
         def __call__(self, done):
             if "thread" not in fired:
                 fired["thread"] = threading.Thread(target=interrupt)
                 fired["thread"].start()
 
-    monkeypatch.setattr(game, "_Progress", SignalOnFirstReport)
+    monkeypatch.setattr(game, "Progress", SignalOnFirstReport)
     with pytest.raises(KeyboardInterrupt):  # ~10^13 steps: hours if not interrupted
         fa.simulate_game(paper, LAM, RATIO, fa.SensorPolicy("count", 0.01, 1), None, 10**6, 10**7, seed=1)
     assert time.monotonic() - fired["t"] < 1.0
@@ -384,7 +384,7 @@ def test_ratio_estimator_and_its_standard_error():
     (-3/4, 1/4, 1/2), s² = 7/16, error sqrt(21/16) / 4; two runs (1, 3) over (1, 1) give r = 2
     and error 1; one run has an infinite error; no tested window at all gives NaN (kills each
     operator and bound of `_ratio_se`)."""
-    from fakeack.game import _ratio_se
+    from fakeack.game.simulate import _ratio_se
 
     r, se = _ratio_se(np.array([1.0, 2.0, 4.0]), np.array([1.0, 1.0, 2.0]))
     assert r == 1.75 and se == pytest.approx(math.sqrt(21 / 16) / 4, rel=1e-15)

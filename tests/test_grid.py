@@ -20,11 +20,11 @@ import pytest
 import fakeack as fa
 from conftest import PAPER
 from fakeack import cli
-from fakeack._grid_cells import cell_seed, mc_attack
-from fakeack._grid_design import design
 from fakeack.config import loads
-from fakeack.grid import StoreError, run_study
-from fakeack.grid_config import ConfigError, example_text, parse_grid_config
+from fakeack.config.grid import ConfigError, example_text, parse_grid_config
+from fakeack.studies.grid import StoreError, run_study
+from fakeack.studies.grid.cells import cell_seed, mc_attack
+from fakeack.studies.grid.design import design
 
 xr = pytest.importorskip("xarray")
 pytest.importorskip("zarr")

@@ -218,7 +218,7 @@ def test_ctrl_c_stops_within_a_second(paper, monkeypatch):
     The signal comes from a thread that the first progress report starts, so it always lands
     while the kernel runs (a fixed timer could fire before the call starts on a loaded machine).
     """
-    import fakeack.montecarlo as mc
+    import fakeack.montecarlo.protocol as mc
 
     fired = {}
 
@@ -226,13 +226,13 @@ def test_ctrl_c_stops_within_a_second(paper, monkeypatch):
         fired["t"] = time.monotonic()
         os.kill(os.getpid(), signal.SIGINT)
 
-    class SignalOnFirstReport(mc._Progress):
+    class SignalOnFirstReport(mc.Progress):
         def __call__(self, done):
             if "thread" not in fired:
                 fired["thread"] = threading.Thread(target=interrupt)
                 fired["thread"].start()
 
-    monkeypatch.setattr(mc, "_Progress", SignalOnFirstReport)
+    monkeypatch.setattr(mc, "Progress", SignalOnFirstReport)
     # Python's own Ctrl-C behaviour, whatever handler an earlier test or library left installed.
     old = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
@@ -248,13 +248,13 @@ def test_ctrl_c_stops_within_a_second(paper, monkeypatch):
 
 
 def test_progress_callback_error_cancels(paper, monkeypatch):
-    import fakeack.montecarlo as mc
+    import fakeack.montecarlo.protocol as mc
 
-    class Boom(mc._Progress):
+    class Boom(mc.Progress):
         def __call__(self, done):
             raise RuntimeError("stop")
 
-    monkeypatch.setattr(mc, "_Progress", Boom)
+    monkeypatch.setattr(mc, "Progress", Boom)
     t0 = time.monotonic()
     with pytest.raises(RuntimeError, match="stop"):
         fa.simulate(paper, 0.5, fa.OnlineSchedule(2), 10_000, 10**8, seed=1)

@@ -207,7 +207,7 @@ def test_a_deterministic_flag_count_is_one_sided(monkeypatch):
     expected was flagged as an attack (z = -inf); an attacker can only remove flags. (At that λ
     the all-blocked flag rate that beta_hat needs is refused by the core, a documented
     ValueError, so the zero-variance branch runs with those moments substituted at λ = 1/2.)"""
-    from fakeack import detection
+    from fakeack.detection import count as detection
 
     assert fa.flag_interval_moments(1e-20, 4) == (5.0, 0.0)
     monkeypatch.setattr(detection, "flag_interval_moments", lambda lam, z0, mu: (5.0, 0.0))

@@ -41,7 +41,7 @@ def test_installed_metadata_reports_the_same_version():
 
 def test_toml_reader_on_every_supported_python():
     # On Python 3.10 this needs the tomli backport, a declared dependency there.
-    assert config._toml is not None, f"no TOML parser on Python {sys.version_info[:2]}"
+    assert config.analyze._toml is not None, f"no TOML parser on Python {sys.version_info[:2]}"
     cfg = config.parse_config(config.loads(config.example_text()), "<example>")
     assert cfg.ratio == Fraction(1, 7)
 
@@ -117,7 +117,7 @@ def test_result_objects_render_as_html(paper):
 
 
 def test_study_result_renders_as_html(paper):
-    from fakeack.study import PAPER_ATTACKS, analyse
+    from fakeack.studies.report import PAPER_ATTACKS, analyse
 
     study = analyse(paper, 0.5, Fraction(1, 7), fa.OnlineDesign(2, 1.0), True, PAPER_ATTACKS, 20, None, horizon=50)
     html = study._repr_html_()

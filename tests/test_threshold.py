@@ -238,7 +238,7 @@ def test_consecutive_is_worst_compares_the_two_costs(paper, monkeypatch):
     is exercised with a stub core that reports a worse mask.
 
     Kills: consecutive_is_worst constant True, or the comparison reversed."""
-    import fakeack.threshold as th
+    import fakeack.attacks.threshold as th
 
     class Stub:
         def __init__(self, j, jc):
@@ -249,7 +249,7 @@ def test_consecutive_is_worst_compares_the_two_costs(paper, monkeypatch):
 
     for j, jc, worst in [(2.0, 1.5, False), (1.5, 1.5, True), (1.5 * (1 + 1e-13), 1.5, True)]:
         stub = Stub(j, jc)
-        monkeypatch.setattr(th, "_core", lambda system, stub=stub: stub)
+        monkeypatch.setattr(th, "compiled", lambda system, stub=stub: stub)
         res = fa.worst_mask(paper, 0.5, 2, 4, 2)
         assert res.consecutive_is_worst is worst and res.j == j and res.j_consecutive == jc
         assert res.mask.tolist() == [1, 0, 1, 0]

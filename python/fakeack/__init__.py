@@ -7,67 +7,73 @@ Schedule for Remote State Estimation", with the corrections listed in the README
 
 from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError
 from ._fakeack import __version__ as __version__  # written once, in Cargo.toml
-from .attack import (
+from .attacks import (
+    AttackPattern,
+    BetaBar,
+    BetaSweep,
+    Decision,
+    FlagInjection,
+    MaskBlocking,
+    MaskSearch,
+    PeriodicBlocking,
+    RandomBlocking,
+    RandomSweep,
     attack_chain,
     balance_residual,
+    beta_bar,
+    beta_bar_random,
+    beta_sweep,
+    choose_schedule,
+    energy_per_step,
     general_attack_chain,
+    high_power_rate,
     j_attack,
+    j_attack_limit,
+    j_attack_pattern,
     num_states,
+    random_blocking_sweep,
+    rate_matching_attack,
     stationary_distribution,
     stationary_gth,
+    worst_mask,
 )
-from .attacks import FlagInjection, MaskBlocking, PeriodicBlocking, RandomBlocking
 from .detection import (
     Detection,
     DetectionRates,
+    FlagCount,
     FlagRates,
+    IntervalDetection,
+    IntervalLaw,
+    IntervalTest,
     delivered_flag_rate,
     detect_attack,
-    detection_rates,
-    estimate_beta,
-    flag_interval_moments,
-    flag_rates,
-)
-from .detectors import (
-    IntervalDetection,
-    IntervalTest,
     detect_intervals,
     detection_probability,
+    detection_rates,
+    estimate_beta,
+    flag_count_moments,
+    flag_interval_law,
+    flag_interval_moments,
+    flag_rates,
     interval_test,
 )
-from .frontier import StealthyFrontier, plot_frontiers, stealthy_frontier
 from .game import (
     GameSimulation,
     GameSolution,
     Payoff,
     SensorPolicy,
     Stackelberg,
+    StealthyFrontier,
     game_payoff,
-    plot_game,
     simulate_game,
     solve_game,
+    stealthy_frontier,
 )
-from .grid import study_grid
-from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
-from .montecarlo import (
-    AttackPattern,
+from .model import (
+    LinearSystem,
     OfflineSchedule,
-    OnlineSchedule,
-    SimulationResult,
-    TraceCurve,
-    expected_trace_curve,
-    simulate,
-)
-from .other_attacks import (
-    RandomSweep,
-    beta_bar_random,
-    energy_per_step,
-    high_power_rate,
-    random_blocking_sweep,
-    rate_matching_attack,
-)
-from .schedules import (
     OnlineDesign,
+    OnlineSchedule,
     design_online,
     energy_ratio,
     j_max,
@@ -76,19 +82,17 @@ from .schedules import (
     offline_schedule,
     online_high_power_rate,
 )
-from .system import LinearSystem
-from .threshold import (
-    BetaBar,
-    BetaSweep,
-    Decision,
-    MaskSearch,
-    beta_bar,
-    beta_sweep,
-    choose_schedule,
-    j_attack_limit,
-    j_attack_pattern,
-    worst_mask,
+from .montecarlo import (
+    SimulationResult,
+    TraceCurve,
+    expected_trace_curve,
+    simulate,
 )
+from .plots import (
+    plot_frontiers,
+    plot_game,
+)
+from .studies import study_grid
 
 __all__ = [
     "FlagInjection",

@@ -19,7 +19,7 @@ import sys
 import time
 from collections.abc import Sequence
 
-from ..study import DEFAULT_HORIZON, DEFAULT_RUNS
+from ..studies.report import DEFAULT_HORIZON, DEFAULT_RUNS
 from ._io import atomic_write
 from ._parser import build_parser
 

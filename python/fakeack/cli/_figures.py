@@ -9,10 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from ..attack import attack_chain, stationary_distribution
-from ..attacks import PeriodicBlocking
-from ..study import Analysis
-from ..threshold import BetaBar, BetaSweep, j_attack_limit
+from ..attacks.chain import attack_chain, stationary_distribution
+from ..attacks.kinds import PeriodicBlocking
+from ..attacks.threshold import BetaBar, BetaSweep, j_attack_limit
+from ..studies.report import Analysis
 from ._io import atomic_write
 from ._report import system_text
 

@@ -6,10 +6,10 @@ import argparse
 from dataclasses import dataclass
 from fractions import Fraction
 
-from .._validate import as_fraction, as_ratio
-from ..config import Config, load_config
-from ..study import PAPER_LAM, PAPER_RATIO, PAPER_SYSTEM
-from ..system import LinearSystem
+from .._internal.validate import as_fraction, as_ratio
+from ..config.analyze import Config, load_config
+from ..model.system import LinearSystem
+from ..studies.report import PAPER_LAM, PAPER_RATIO, PAPER_SYSTEM
 
 __all__ = ["SYSTEM_FLAGS", "SystemInputs", "resolve_system"]
 

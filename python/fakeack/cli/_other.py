@@ -7,11 +7,13 @@ from fractions import Fraction
 from pathlib import Path
 from typing import Any
 
-from ..attack import j_attack
-from ..families import attack_families, other_attacks_table, plot_attack_families
-from ..other_attacks import beta_bar_random, high_power_rate
-from ..schedules import OnlineDesign
-from ..system import LinearSystem
+from ..attacks.chain import j_attack
+from ..attacks.families import attack_families, other_attacks_table
+from ..attacks.random import beta_bar_random
+from ..attacks.rates import high_power_rate
+from ..model.schedules import OnlineDesign
+from ..model.system import LinearSystem
+from ..plots.families import plot_attack_families
 from ._figures import save_figure
 from ._report import format_number
 

@@ -6,8 +6,8 @@ import argparse
 from collections.abc import Callable
 
 from .. import __version__
-from .._validate import MODES, PROTOCOLS
-from ..study import DEFAULT_HORIZON, DEFAULT_OUT, DEFAULT_RUNS, DEFAULT_SEED, DEFAULT_T_MAX
+from .._internal.validate import MODES, PROTOCOLS
+from ..studies.report import DEFAULT_HORIZON, DEFAULT_OUT, DEFAULT_RUNS, DEFAULT_SEED, DEFAULT_T_MAX
 from . import analyze, game, grid, reproduce, simulate, sweep
 
 __all__ = ["build_parser"]

@@ -9,9 +9,9 @@ from typing import Any
 
 import numpy as np
 
-from ..schedules import OnlineDesign, offline_schedule, online_high_power_rate
-from ..study import FLAG_SIGMAS, Analysis, Row
-from ..system import LinearSystem
+from ..model.schedules import OnlineDesign, offline_schedule, online_high_power_rate
+from ..model.system import LinearSystem
+from ..studies.report import FLAG_SIGMAS, Analysis, Row
 
 __all__ = [
     "analysis_json",

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
-from ..attacks import PeriodicBlocking
-from ..config import Config, ConfigError, example_text, load_config, loads, parse_config
-from ..schedules import offline_schedule
-from ..study import Analysis, analyse
+from ..attacks.kinds import PeriodicBlocking
+from ..config.analyze import Config, ConfigError, example_text, load_config, loads, parse_config
+from ..model.schedules import offline_schedule
+from ..studies.report import Analysis, analyse
 from ._figures import write_figures
 from ._io import atomic_write, to_json
 from ._other import attack_rows

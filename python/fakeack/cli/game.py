@@ -10,10 +10,12 @@ import time
 from pathlib import Path
 from typing import Any
 
-from .._game_config import GameConfig, parse_game
-from ..config import example_text, load_config, loads, parse_config
-from ..frontier import FAMILIES, plot_frontiers, stealthy_frontier
-from ..game import simulate_game, solve_game
+from ..config.analyze import example_text, load_config, loads, parse_config
+from ..config.game import GameConfig, parse_game
+from ..game.frontier import FAMILIES, stealthy_frontier
+from ..game.simulate import simulate_game
+from ..game.solve import solve_game
+from ..plots.frontier import plot_frontiers
 from ._figures import save_figure
 from ._io import atomic_write, to_json
 
@@ -119,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
         import matplotlib
 
         matplotlib.use("Agg")
-        from ..game import plot_game
+        from ..plots.game import plot_game
 
         out = Path(args.out)
         figures += save_figure(plot_frontiers(frontiers, j_offline=sol.j_offline), out, "fig_frontiers")

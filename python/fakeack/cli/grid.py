@@ -18,9 +18,9 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from ..config import ConfigError
-from ..grid import run_study
-from ..grid_config import GridConfig, example_text, load_grid_config
+from ..config.analyze import ConfigError
+from ..config.grid import GridConfig, example_text, load_grid_config
+from ..studies.grid.run import run_study
 from ._io import atomic_write
 
 __all__ = ["run"]
@@ -105,8 +105,8 @@ def run(args: argparse.Namespace) -> int:
     written = [_write_netcdf(ds, out / "study.nc")]
     figures: list[Path] = []
     if not args.no_figures:
-        from ..grid_figures import write_heat_maps
-        from ..plots import have_matplotlib
+        from ..plots.grid import write_heat_maps
+        from ..plots.paper import have_matplotlib
 
         if have_matplotlib():
             figures = write_heat_maps(ds, out)

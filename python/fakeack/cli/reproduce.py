@@ -6,9 +6,10 @@ import argparse
 import time
 from pathlib import Path
 
-from ..config import MonteCarloConfig
-from ..schedules import design_online, offline_schedule
-from ..study import (
+from ..config.analyze import MonteCarloConfig
+from ..model.schedules import design_online, offline_schedule
+from ..model.system import LinearSystem
+from ..studies.report import (
     PAPER_ATTACKS,
     PAPER_BETA_BAR,
     PAPER_LAM,
@@ -19,7 +20,6 @@ from ..study import (
     Analysis,
     analyse,
 )
-from ..system import LinearSystem
 from ._figures import write_figures
 from ._io import to_json
 from ._other import family_figure, reproduce_lines

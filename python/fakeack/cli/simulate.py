@@ -8,12 +8,20 @@ import io
 from dataclasses import dataclass
 from typing import Any
 
-from ..attack import j_attack
-from ..attacks import Attack, FlagInjection, MaskBlocking, PeriodicBlocking, RandomBlocking, as_attack
-from ..config import MonteCarloConfig
-from ..montecarlo import OfflineSchedule, OnlineSchedule, SimulationResult, TraceCurve, expected_trace_curve
-from ..schedules import OnlineDesign, design_online, j_offline, j_online
-from ..study import FLAG_SIGMAS, Row, run_monte_carlo
+from ..attacks.chain import j_attack
+from ..attacks.kinds import Attack, FlagInjection, MaskBlocking, PeriodicBlocking, RandomBlocking, as_attack
+from ..config.analyze import MonteCarloConfig
+from ..model.schedules import (
+    OfflineSchedule,
+    OnlineDesign,
+    OnlineSchedule,
+    design_online,
+    j_offline,
+    j_online,
+)
+from ..montecarlo.curves import TraceCurve, expected_trace_curve
+from ..montecarlo.protocol import SimulationResult
+from ..studies.report import FLAG_SIGMAS, Row, run_monte_carlo
 from ._inputs import SystemInputs, resolve_system
 from ._io import emit, to_json
 from ._report import format_number, system_text

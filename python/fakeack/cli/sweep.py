@@ -9,8 +9,8 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
-from ..study import DEFAULT_T_MAX, sweep_and_thresholds
-from ..threshold import BetaBar, BetaSweep, j_attack_limit
+from ..attacks.threshold import BetaBar, BetaSweep, j_attack_limit
+from ..studies.report import DEFAULT_T_MAX, sweep_and_thresholds
 from ._inputs import SystemInputs, resolve_system
 from ._io import emit, to_json
 from ._report import format_number, paragraph, system_text

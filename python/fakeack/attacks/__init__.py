@@ -1,0 +1,68 @@
+"""Attacks on the flag-ACKs: the attack objects, the attack chain and its stationary law, the cost
+under attack, the attacker threshold and the sensor's decision, and the families beyond the paper's."""
+
+from .chain import (
+    attack_chain,
+    balance_residual,
+    general_attack_chain,
+    j_attack,
+    num_states,
+    stationary_distribution,
+    stationary_gth,
+)
+from .kinds import (
+    Attack,
+    AttackPattern,
+    FlagInjection,
+    MaskBlocking,
+    PeriodicBlocking,
+    RandomBlocking,
+    as_attack,
+)
+from .random import RandomSweep, beta_bar_random, random_blocking_sweep, rate_matching_attack
+from .rates import energy_per_step, high_power_rate
+from .threshold import (
+    BetaBar,
+    BetaSweep,
+    Decision,
+    MaskSearch,
+    beta_bar,
+    beta_sweep,
+    choose_schedule,
+    j_attack_limit,
+    j_attack_pattern,
+    worst_mask,
+)
+
+__all__ = [
+    "AttackPattern",
+    "PeriodicBlocking",
+    "MaskBlocking",
+    "RandomBlocking",
+    "FlagInjection",
+    "Attack",
+    "as_attack",
+    "num_states",
+    "attack_chain",
+    "stationary_distribution",
+    "balance_residual",
+    "j_attack",
+    "general_attack_chain",
+    "stationary_gth",
+    "j_attack_pattern",
+    "j_attack_limit",
+    "BetaSweep",
+    "beta_sweep",
+    "BetaBar",
+    "beta_bar",
+    "Decision",
+    "choose_schedule",
+    "MaskSearch",
+    "worst_mask",
+    "high_power_rate",
+    "energy_per_step",
+    "beta_bar_random",
+    "RandomSweep",
+    "random_blocking_sweep",
+    "rate_matching_attack",
+]

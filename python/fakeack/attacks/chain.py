@@ -1,0 +1,285 @@
+"""The fake-ACK attack (Sec. IV): its Markov chain, stationary law and cost."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import scipy.sparse as sp
+
+from .. import _fakeack
+from .._internal.validate import as_int, as_probability
+from ..model.system import compiled
+from .kinds import MaskBlocking, PeriodicBlocking, attack_argument, core_attack
+
+__all__ = [
+    "num_states",
+    "attack_chain",
+    "stationary_distribution",
+    "balance_residual",
+    "j_attack",
+    "general_attack_chain",
+    "stationary_gth",
+]
+
+
+
+def _check(lam: Any, z0: Any, r: Any, t: Any) -> tuple[float, int, int, int]:
+    lam, z0 = as_probability("lam", lam), as_int("z0", z0, minimum=1)
+    att = PeriodicBlocking(r, t)
+    return lam, z0, att.r, att.t
+
+
+def num_states(z0: Any, r: Any, t: Any) -> int:
+    r"""Number of chain states :math:`|\mathcal S| = \tfrac12 r(r+1)z_0 + t(z_0+1)` (Sec. IV-B).
+
+    Parameters
+    ----------
+    z0 : int
+        Memory length.
+    r, t : int
+        The attacker blocks the first r of every t flag-ACKs.
+    """
+    _, z0, r, t = _check(0.5, z0, r, t)
+    return int(_fakeack.num_states(z0, r, t))
+
+
+def attack_chain(lam: Any, z0: Any, r: Any, t: Any) -> tuple[np.ndarray, sp.csr_array]:
+    r"""The Markov chain :math:`S_k = (\tau_k, \sigma_k)` under the fake-ACK attack (Sec. IV-B).
+
+    States follow the paper's order (level :math:`\sigma = 0..t-1`; in level :math:`\sigma \le r`,
+    :math:`\tau = 0..z_0(\sigma+1)`, else :math:`\tau = 0..z_0`); transitions follow rules 1)-4),
+    with the attacker blocking the first r of every t flag-ACKs (Model note 3).
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length :math:`z_0 \ge 1` (fixed, :math:`\mu = 1`).
+    r, t : int
+        The attacker blocks the first ``r`` of every ``t`` flag-ACKs, ``0 <= r < t``. A pair that
+        is not in lowest terms is a different attack (kr blocked in a row out of kt) and is built
+        as given.
+
+    Returns
+    -------
+    states : numpy.ndarray
+        ``(|S|, 2)`` int64 array of ``[tau, sigma]``.
+    T : scipy.sparse.csr_array
+        Row-stochastic: ``T[i, j] = P[S_{k+1} = j | S_k = i]``, i.e. the transpose of the paper's
+        column-stochastic :math:`\mathcal T_s` (for ``z0=2, r=1, t=3`` its eq. (12), with Model
+        note 4 applied).
+
+    Raises
+    ------
+    ValueError
+        On bad arguments, or when :math:`|\mathcal S|` exceeds ``fakeack.MAX_BUILD_STATES``
+        (2·10^7); :func:`stationary_distribution` and :func:`j_attack` need no matrix.
+    """
+    lam, z0, r, t = _check(lam, z0, r, t)
+    states, indptr, indices, data = _fakeack.attack_chain(lam, z0, r, t)
+    n = states.shape[0]
+    return states, sp.csr_array((data, indices, indptr), shape=(n, n))
+
+
+def stationary_distribution(
+    lam: Any, z0: Any, r: Any, t: Any, *, method: str = "structured"
+) -> np.ndarray:
+    r"""Stationary law :math:`\Pi^\star` of the attack chain, aligned with :func:`attack_chain`.
+
+    Solves :math:`\mathcal T_s \Pi = \Pi`, :math:`\sum\Pi = 1` (eq. (13)).
+
+    Parameters
+    ----------
+    lam, z0, r, t
+        As in :func:`attack_chain`.
+    method : {"structured", "gth"}
+        ``"structured"`` (default) fills the closed form
+        :math:`\pi(\tau,\sigma) \propto \tilde c(\sigma-k)\,a^\tau` in :math:`O(|\mathcal S|)`
+        without building the matrix (k is the segment of :math:`\tau`; :math:`\tilde c = 1` at
+        level 0 and above r, :math:`1-a^{z_0}` between); see the model notes in the README.
+        ``"gth"`` builds the matrix and runs Grassmann-Taksar-Heyman state reduction, an
+        independent general solver.
+
+    Returns
+    -------
+    numpy.ndarray
+        Non-negative, summing to 1. Check it with :func:`balance_residual`.
+    """
+    lam, z0, r, t = _check(lam, z0, r, t)
+    if method == "structured":
+        return _fakeack.stationary_structured(lam, z0, r, t)
+    if method == "gth":
+        _, indptr, indices, data = _fakeack.attack_chain(lam, z0, r, t)
+        return _fakeack.stationary_gth(indptr, indices, data)
+    raise ValueError(f"method must be 'structured' or 'gth', got {method!r}")
+
+
+def balance_residual(lam: Any, z0: Any, r: Any, t: Any, pi: Any) -> float:
+    r""":math:`\|\Pi' T - \Pi'\|_1` of a candidate stationary law, applying rules 1)-4) on the fly.
+
+    Parameters
+    ----------
+    lam, z0, r, t
+        As in :func:`attack_chain`.
+    pi : array_like
+        Candidate stationary vector aligned with :func:`attack_chain`'s states.
+
+    Returns
+    -------
+    float
+        The balance residual; the structured solver's is below 1e-12 (tests).
+    """
+    lam, z0, r, t = _check(lam, z0, r, t)
+    arr = np.ascontiguousarray(pi, dtype=np.float64)
+    if arr.ndim != 1:
+        raise ValueError(f"pi must be 1-D, got {arr.ndim}-D")
+    return _fakeack.balance_residual(lam, z0, r, t, arr)
+
+
+def j_attack(
+    system: Any,
+    lam: Any,
+    z0: Any,
+    r: Any = None,
+    t: Any = None,
+    mu: Any = 1.0,
+    *,
+    attack: Any = None,
+) -> float:
+    r"""Cost :math:`J(\tilde\theta_{\mathrm{on}})` under a fake-ACK attack (Sec. IV-B, eq. (14)).
+
+    :math:`J = \sum_{\mathcal S}\Pi^\star(\tau,\sigma)\,\mathrm{Tr}\,h^\tau(\bar P)`, summed per
+    segment of the stationary law against the weighted traces
+    :math:`a^\tau\mathrm{Tr}\,h^\tau(\bar P)`: :math:`O(r z_0)` for the paper's attack, so
+    chains of :math:`10^7` states and more cost microseconds, and long blocked runs never overflow
+    where the weighted terms are finite. Any blocking mask and any :math:`\mu` use the renewal
+    form (Model notes), checked against the full chain (:func:`general_attack_chain`).
+    Independent blocking and forged flag-ACKs, which the paper leaves to future work, use the
+    renewal cycle from one fresh start to the next (see :class:`fakeack.RandomBlocking` and
+    :class:`fakeack.FlagInjection`).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The process and sensor.
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    r, t : int, optional
+        Block the first ``r`` of every ``t`` flag-ACKs (``r = 0`` is the unattacked online
+        schedule); the same as ``attack=fakeack.PeriodicBlocking(r, t)``.
+    mu : float, optional
+        Memory mix :math:`\mu \in [0, 1]` as in :func:`fakeack.j_online`. For ``mu < 1`` the chain
+        also needs the zeros in the memory since its last reset (the paper says its results cover
+        this case but never writes it down). Costs :math:`O(r^2)` for ``mu < 1``.
+    attack : PeriodicBlocking, MaskBlocking, RandomBlocking, FlagInjection or str, optional
+        The attack, instead of ``r, t`` (an attack object may also be passed in r's place), or a
+        spelling such as ``"1/5"``, ``"random:0.3"`` or ``"inject:0.1+random:0.3"``. A mask that
+        blocks every flag-ACK is refused: its cost is :func:`fakeack.j_max`.
+
+    Returns
+    -------
+    float
+        The attacked cost, always finite in exact arithmetic (a finite r bounds the holding
+        time); ``inf`` (never NaN) when it lies beyond the double range, as long blocked runs
+        reach where :math:`(1-\lambda)\rho(A)^2 \ge 1`.
+
+    Examples
+    --------
+    >>> import fakeack as fa
+    >>> s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+    >>> round(fa.j_attack(s, 0.5, 2, attack=fa.PeriodicBlocking(1, 5)), 6)
+    1.819651
+    >>> mask = fa.MaskBlocking([1, 0, 0, 0, 0])
+    >>> fa.j_attack(s, 0.5, 2, 1, 5) == fa.j_attack(s, 0.5, 2, attack=mask)
+    True
+    >>> round(fa.j_attack(s, 0.5, 2, attack=fa.RandomBlocking(0.2)), 6)
+    1.832057
+    """
+    core = compiled(system)
+    att = attack_argument(r, t, attack)
+    lam = as_probability("lam", lam)
+    z0 = as_int("z0", z0, minimum=1)
+    mu = as_probability("mu", mu, closed=True)
+    if isinstance(att, MaskBlocking) and all(att.mask):
+        raise ValueError("mask blocks every flag-ACK; its cost is fakeack.j_max(system, lam)")
+    return core.j_attack(lam, z0, mu, core_attack(att))
+
+
+def general_attack_chain(
+    lam: Any, z0: Any, mask: Any, mu: Any = 1.0
+) -> tuple[np.ndarray, sp.csr_array]:
+    r"""The attack chain in full generality: any memory mix :math:`\mu` and any blocking mask.
+
+    States are :math:`(\tau, z, \sigma)`: holding time, zeros in the detector's memory since its
+    last reset, attacker counter. Built by breadth-first exploration of the protocol's rules from
+    the paper's initial state, so it shares no formula with the structured solvers and serves as
+    their independent check.
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability at low power.
+    z0 : int
+        Memory length.
+    mask : sequence of 0/1, PeriodicBlocking or MaskBlocking
+        The attack: ``mask[sigma] == 1`` blocks the flag-ACK counted sigma in each period of
+        ``len(mask)`` (``[1]*r + [0]*(t-r)`` is the paper's attack), or an attack object. A mask
+        of all ones is refused (the chain is infinite; its cost is :func:`fakeack.j_max`).
+    mu : float, optional
+        Probability of the z0-bit memory at each step.
+
+    Returns
+    -------
+    states : numpy.ndarray
+        ``(n, 3)`` int64 ``[tau, zeros, sigma]`` in exploration order.
+    T : scipy.sparse.csr_array
+        Row-stochastic transition matrix.
+    """
+    lam = as_probability("lam", lam)
+    z0 = as_int("z0", z0, minimum=1)
+    mu = as_probability("mu", mu, closed=True)
+    att = mask if isinstance(mask, (PeriodicBlocking, MaskBlocking)) else MaskBlocking(mask)
+    states, indptr, indices, data = _fakeack.general_attack_chain(lam, z0, mu, core_attack(att))
+    n = states.shape[0]
+    return states, sp.csr_array((data, indices, indptr), shape=(n, n))
+
+
+def stationary_gth(T: Any) -> np.ndarray:
+    """Stationary law of any irreducible row-stochastic sparse or dense matrix.
+
+    Grassmann-Taksar-Heyman state reduction: no subtractions, so every entry is accurate to a few
+    ulps even when it is tiny. Sparse fill-in makes it slow for large, densely coupled chains.
+
+    Parameters
+    ----------
+    T : array_like or scipy.sparse matrix
+        Square, non-negative, rows summing to 1.
+
+    Returns
+    -------
+    numpy.ndarray
+        The stationary vector, summing to 1.
+
+    References
+    ----------
+    .. [1] W. K. Grassmann, M. I. Taksar, D. P. Heyman, "Regenerative analysis and steady state
+       distributions for Markov chains", Operations Research 33(5), 1985.
+    """
+    M = sp.csr_array(T)
+    if M.ndim != 2 or M.shape[0] != M.shape[1] or M.shape[0] == 0:
+        raise ValueError(f"T must be a non-empty square matrix, got shape {M.shape}")
+    M.sum_duplicates()
+    M.sort_indices()
+    data = np.asarray(M.data, dtype=np.float64)
+    if not np.all(np.isfinite(data)) or np.any(data < 0):
+        raise ValueError("T must be finite and non-negative")
+    rows = np.asarray(M.sum(axis=1)).ravel()
+    if np.max(np.abs(rows - 1.0)) > 1e-10:
+        raise ValueError("T must be row-stochastic (rows summing to 1)")
+    return _fakeack.stationary_gth(
+        M.indptr.astype(np.int64), M.indices.astype(np.int64), data
+    )

@@ -1,0 +1,85 @@
+"""Attacks beyond the paper's: independent blocking, forged flag-ACKs, and what they cost the
+sensor in estimation error and in energy."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .. import _fakeack
+from .._internal.validate import as_real
+from ..model.schedules import check_online
+from .kinds import as_attack, core_attack
+
+__all__ = [
+    "high_power_rate",
+    "energy_per_step",
+]
+
+
+
+def high_power_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
+    r"""Long-run fraction of steps at high power under an attack (exact).
+
+    The sensor uses high power after every flag-ACK that reaches it, genuine or forged, so this is
+    the rate of delivered plus forged flags: with ``s`` genuine flags sent per step, a blocking
+    attack delivers a fraction of them and a :class:`fakeack.FlagInjection` adds
+    :math:`\gamma(1 - s)` forged ones. Without attack it is
+    :func:`fakeack.online_high_power_rate`.
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    attack : None or attack, optional
+        Any attack (:class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
+        :class:`fakeack.RandomBlocking`, :class:`fakeack.FlagInjection`, or ``(r, t)``).
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+
+    Examples
+    --------
+    >>> round(high_power_rate(0.5, 2), 12) == round(1 / 7, 12)
+    True
+    >>> high_power_rate(0.5, 2, FlagInjection(1.0))
+    1.0
+    """
+    lam, z0, mu = check_online(lam, z0, mu)
+    return _fakeack.flag_rates(lam, z0, mu, core_attack(as_attack(attack)))[1]
+
+
+def energy_per_step(
+    lam: Any, z0: Any, Delta: Any, delta: Any, attack: Any = None, mu: Any = 1.0
+) -> float:
+    r"""Long-run energy per step: :math:`\delta + (\Delta - \delta)\,f`, f the high-power rate.
+
+    With ``attack=None`` and the designed schedule this is the budget :math:`\Psi`. An attack that
+    forges flag-ACKs raises it above :math:`\Psi`, so a battery sized for :math:`\Psi` lasts
+    :math:`\Psi/e` of its planned life; blocking lowers it (the sensor saves energy and loses
+    accuracy).
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    Delta, delta : float
+        Energy of a high-power and a low-power transmission, :math:`\Delta > \delta \ge 0`.
+    attack : None or attack, optional
+        As in :func:`high_power_rate`.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+
+    Examples
+    --------
+    >>> round(energy_per_step(0.5, 2, 3, 1), 12) == round(9 / 7, 12)   # the paper's Psi
+    True
+    """
+    hi, lo = as_real("Delta", Delta), as_real("delta", delta)
+    if lo < 0:
+        raise ValueError(f"delta must be non-negative, got {lo}")
+    if not hi > lo:
+        raise ValueError(f"Delta must exceed delta, got Delta={hi}, delta={lo}")
+    return lo + (hi - lo) * high_power_rate(lam, z0, attack, mu)

@@ -1,0 +1,445 @@
+"""The sensor's two tests for a fake-ACK attacker and their detection probability per window.
+
+* The **count test** (:func:`fakeack.detect_attack`) compares how many flag-ACKs reached the sensor
+  in a window of n steps with the attack-free count (renewal central limit theorem).
+* The **interval test** (:func:`detect_intervals`) also looks at *when* they came: Pearson's
+  goodness-of-fit statistic over bins of the exact attack-free gap law.
+
+:func:`detection_probability` gives the probability that either test raises an alarm in one window
+under any attack (``None``: the false-alarm rate), from the exact laws of
+``fakeack.intervals`` and the stated normal approximations.
+
+(Over 450 lines: both tests and their power share the gap-law bins and moments; the
+detection_probability part is the next to move to a module of its own.)
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.special import ndtr
+
+from .. import _fakeack
+from .._internal.validate import as_int, as_probability
+from ..attacks.kinds import as_attack, core_attack
+from ..model.schedules import check_online
+from . import _quadform
+from .count import (
+    check_alternative,
+    count_alarm_bounds,
+    harmful_count_bound,
+)
+from .flags import estimate_beta
+from .interval_test import IntervalTest, _interval_test
+from .intervals import walk
+
+__all__ = [
+    "TESTS",
+    "detection_probability",
+    "DetectionRates",
+    "detection_rates",
+]
+
+
+#: The sensor's tests.
+TESTS = ("count", "interval")
+
+
+def check_test(test: Any) -> str:
+    """A valid test name."""
+    if test not in TESTS:
+        raise ValueError(f"test must be one of {TESTS}, got {test!r}")
+    return test
+
+
+
+
+# ---------------------------------------------------------------------------------------------
+# Detection probabilities.
+
+
+def _count_moments(lam: float, z0: int, mu: float, n: int, attack: Any) -> tuple[float, float]:
+    """(mean, sd) of a stationary window's count under the attack (:func:`flag_count_moments`)."""
+    w = walk(lam, z0, attack, mu)
+    if w.endless:
+        return 0.0, 0.0
+    _, sig = w.time_covariance(np.array([1]))
+    return n / w.mean, math.sqrt(max(n * float(sig[0, 0]), 0.0))
+
+
+def _count_alarm(bounds: tuple[int, int], n: int, moments: tuple[float, float], harm: int | None) -> float:
+    """P(count alarm) for a normal count with continuity correction; with ``harm``, only alarms
+    with N <= harm (an estimated budget above β̄)."""
+    lo, hi = bounds
+    mean, sd = moments
+    if harm is not None:
+        hi_region = (hi, harm) if hi <= harm else None
+        lo = min(lo, harm)
+    else:
+        hi_region = (hi, n)
+
+    def cdf(k: float) -> float:  # P(N <= k)
+        if sd == 0.0:
+            return float(mean <= k + 0.5)
+        return float(ndtr((k + 0.5 - mean) / sd))
+
+    p = cdf(lo) if lo >= 0 else 0.0
+    if hi_region is not None and hi_region[0] <= n:
+        p += cdf(hi_region[1]) - cdf(hi_region[0] - 1)
+    return min(max(p, 0.0), 1.0)
+
+
+def _count_probability(lam, z0, mu, n, alpha, alternative, attack, harm):
+    bounds = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
+    return _count_alarm(bounds, n, _count_moments(lam, z0, mu, n, attack), harm)
+
+
+def _attack_form(test: IntervalTest, attack: Any) -> tuple[np.ndarray, np.ndarray] | None:
+    """(mean, covariance) of y = D^-1/2 (O - E) under the attack; None when no flag gets through."""
+    w = walk(test.lam, test.z0, attack, test.mu)
+    if w.endless:
+        return None
+    n = test.n_steps
+    m0 = n / test.expected.sum()
+    p0 = test.expected / test.expected.sum()
+    pa, sigma_a = w.time_covariance(test.edges)
+    scale = np.sqrt(p0 / m0)
+    mean = math.sqrt(n) * (pa / w.mean - p0 / m0) / scale
+    cov = sigma_a / np.outer(scale, scale)
+    return mean, cov
+
+
+_NODES, _WEIGHTS = np.polynomial.legendre.leggauss(24)
+
+
+class _Form:
+    """The interval statistic under one attack, ready for tails at any critical value.
+
+    X² = y'y with y ~ N(mean, cov) (:func:`_attack_form`). For the harmful rule the count enters
+    as s = ŵ'y (ŵ = sqrt(p0), N - n/m0 = sqrt(n/m0) s): X² = s² + |y_⊥|², and given s the
+    projection y_⊥ is normal with a mean linear in s and a fixed covariance, so
+    P(X² > c, s <= s_hi) is an integral over s of generalised chi-square tails (Gauss-Legendre,
+    split where s² crosses c).
+    """
+
+    def __init__(self, test: IntervalTest, attack: Any):
+        form = _attack_form(test, attack)
+        self.none = form is None  # no flag: O = 0, X² = Σ E deterministic, N = 0
+        self.total = float(test.expected.sum())
+        if self.none:
+            return
+        mean, cov = form
+        self.lam, self.b, self.delta = _quadform.canonical(cov, mean)
+        w_hat = np.sqrt(test.expected / self.total)
+        var_s = float(w_hat @ cov @ w_hat)
+        self.mu_s = float(w_hat @ mean)
+        self.sd_s = math.sqrt(max(var_s, 0.0))
+        self.count_fixed = var_s <= 1e-14 * max(1.0, float(np.trace(cov)))
+        if self.count_fixed:
+            return
+        P = np.eye(len(mean)) - np.outer(w_hat, w_hat)
+        cross = P @ cov @ w_hat
+        cond = P @ cov @ P - np.outer(cross, cross) / var_s
+        m_0 = P @ mean - cross * self.mu_s / var_s
+        m_1 = cross / var_s
+        vals, vecs = np.linalg.eigh(0.5 * (cond + cond.T))
+        keep = vals > 1e-12 * max(vals.max(initial=0.0), 1e-300)
+        self.lam_c = vals[keep]
+        root = np.sqrt(self.lam_c)
+        p_0, p_1 = vecs[:, keep].T @ m_0, vecs[:, keep].T @ m_1
+        self.b_0, self.b_1 = p_0 / root, p_1 / root
+        # |m(s)|² - |U'm(s)|², the part of the conditional mean outside the range: a2 s² + a1 s + a0.
+        self.a = (m_0 @ m_0 - p_0 @ p_0, 2 * (m_0 @ m_1 - p_0 @ p_1), m_1 @ m_1 - p_1 @ p_1)
+
+    def rows_any(self, c: float) -> tuple:
+        """Rows (lam, b, delta, x, weight) whose weighted tails sum to P(X² > c)."""
+        return self.lam[None], self.b[None], np.array([self.delta]), np.array([c]), np.ones(1)
+
+    def rows_joint(self, c: float, s_hi: float) -> tuple | float:
+        """Rows for P(X² > c, s <= s_hi), or the probability itself when no integral is needed."""
+        if self.count_fixed:
+            if self.mu_s > s_hi:
+                return 0.0
+            return self.rows_any(c)
+        lo = self.mu_s - 9.0 * self.sd_s
+        if s_hi <= lo:
+            return 0.0
+        hi = min(s_hi, self.mu_s + 9.0 * self.sd_s)
+        cuts = sorted({lo, hi, *[r for r in (-math.sqrt(c), math.sqrt(c)) if lo < r < hi]})
+        pieces = list(zip(cuts[:-1], cuts[1:], strict=True))
+        s = np.concatenate([0.5 * (b - a) * _NODES + 0.5 * (b + a) for a, b in pieces])
+        wq = np.concatenate([0.5 * (b - a) * _WEIGHTS for a, b in pieces])
+        dens = np.exp(-0.5 * ((s - self.mu_s) / self.sd_s) ** 2) / (self.sd_s * math.sqrt(2 * math.pi))
+        b = self.b_0[None] + s[:, None] * self.b_1[None]
+        delta = np.maximum(self.a[0] + self.a[1] * s + self.a[2] * s**2, 0.0)
+        lam = np.broadcast_to(self.lam_c, b.shape)
+        return lam, b, delta, c - s**2, wq * dens
+
+
+def _sum_tails(batches: list) -> np.ndarray:
+    """Σ weight · tail per batch (a batch is a probability, or rows from :class:`_Form`), in one
+    vectorised call."""
+    out = np.zeros(len(batches))
+    rows = [(i, r) for i, r in enumerate(batches) if not isinstance(r, float)]
+    for i, r in enumerate(batches):
+        if isinstance(r, float):
+            out[i] = r
+    if not rows:
+        return out
+    k = max(r[0].shape[1] for _, r in rows)
+    sizes = [len(r[2]) for _, r in rows]
+    lam, b = np.zeros((sum(sizes), k)), np.zeros((sum(sizes), k))
+    at = 0
+    for (_, r), size in zip(rows, sizes, strict=True):
+        lam[at:at + size, : r[0].shape[1]] = r[0]
+        b[at:at + size, : r[1].shape[1]] = r[1]
+        at += size
+    delta = np.concatenate([r[2] for _, r in rows])
+    x = np.concatenate([r[3] for _, r in rows])
+    w = np.concatenate([r[4] for _, r in rows])
+    seg = np.concatenate([np.full(len(r[2]), j) for j, (_, r) in enumerate(rows)])
+    sums = np.bincount(seg, weights=w * _quadform.tail(lam, b, delta, x), minlength=len(rows))
+    for j, (i, _) in enumerate(rows):
+        out[i] = sums[j]
+    return np.clip(out, 0.0, 1.0)
+
+
+def _interval_batch(test: IntervalTest, form: _Form, harm: int | None) -> tuple | float:
+    """One attack's rows for the interval test's (harmful) alarm probability."""
+    if form.none:
+        return float(form.total > test.critical and (harm is None or harm >= 0))
+    if harm is None:
+        return form.rows_any(test.critical)
+    if harm < 0:
+        return 0.0
+    n = test.n_steps
+    m0 = n / form.total
+    s_hi = (harm + 0.5 - n / m0) / math.sqrt(n / m0)
+    return form.rows_joint(test.critical, s_hi)
+
+
+def _interval_probability(test: IntervalTest, attack: Any, harm: int | None) -> float:
+    return float(_sum_tails([_interval_batch(test, _Form(test, attack), harm)])[0])
+
+
+def _joint_tail(test: IntervalTest, attack: Any, s_hi: float) -> float:
+    """P(X² > c and ŵ'y <= s_hi) under the attack (for the tests)."""
+    form = _Form(test, attack)
+    return float(_sum_tails([form.rows_joint(test.critical, s_hi)])[0])
+
+
+def detection_probability(
+    lam: Any,
+    z0: Any,
+    attack: Any,
+    n_steps: Any,
+    alpha: Any,
+    test: str = "count",
+    alternative: str = "two-sided",
+    mu: Any = 1.0,
+    *,
+    beta_bar: Any = None,
+) -> float:
+    r"""Probability that the sensor's test raises an alarm in one window of ``n_steps`` steps.
+
+    The window lies in the stationary regime of the attack (the attacker's counter and the
+    detector's memory at its start follow their long-run law), as in a repeated game; ``attack``
+    ``None`` gives the false-alarm rate.
+
+    * ``test="count"``: the count N of flag-ACKs reaching the sensor is taken as normal with the
+      exact stationary mean n/m and the Markov renewal variance :math:`n s^2/m^3`
+      (:func:`fakeack.flag_count_moments`; serial covariances included under a periodic attack),
+      with a continuity correction; the alarm region is the one :func:`fakeack.detect_attack`
+      uses for ``alternative``.
+    * ``test="interval"``: the bin counts of :func:`interval_test` are taken as normal with their
+      exact mean and Markov renewal covariance; Pearson's statistic is then a generalised
+      chi-square whose tail is computed by the saddlepoint method.
+
+    Both are large-sample approximations (many flags per window); the tests check them against
+    the closed-loop Monte Carlo (:func:`fakeack.detection_rates`).
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    attack : None or attack
+        Any attack (periodic or mask blocking, random blocking, flag injection, rate matching).
+    n_steps : int
+        Window length in steps.
+    alpha : float
+        False-alarm level of the test, in (0, 1).
+    test : {"count", "interval"}
+        The sensor's test.
+    alternative : {"two-sided", "less", "greater"}
+        Alternative of the count test (default two-sided). The interval test's statistic is
+        two-sided by construction and takes only ``"two-sided"``.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+    beta_bar : float, optional
+        Count only alarms whose estimated budget (:func:`fakeack.estimate_beta` of the window's
+        count) exceeds ``beta_bar``: the harmful alarms of a sensor that falls back only from
+        harmful attacks.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> p = detection_probability(0.5, 2, None, 1000, 0.01)
+    >>> 0.005 < p < 0.015
+    True
+    """
+    lam, z0, mu = check_online(lam, z0, mu)
+    att = as_attack(attack)
+    n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
+    alpha = as_probability("alpha", alpha)
+    test = check_test(test)
+    alternative = check_alternative(alternative)
+    harm = None if beta_bar is None else harmful_count_bound(lam, z0, n, beta_bar, mu)
+    if test == "count":
+        return _count_probability(lam, z0, mu, n, alpha, alternative, att, harm)
+    if alternative != "two-sided":
+        raise ValueError(
+            f"alternative: the interval test is two-sided by construction, got {alternative!r}"
+        )
+    return _interval_probability(_interval_test(lam, z0, mu, n, alpha), att, harm)
+
+
+def simulate_windows(
+    lam: float, z0: int, mu: float, attack: Any, n: int, runs: int, seed: int, test: str, alpha: float,
+    alternative: str, burn_in: int, progress: bool | None = False,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Alarms (0/1) and delivered flag-ACKs of ``runs`` simulated windows of ``n`` steps, one per run,
+    after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back)."""
+    from .._internal.progress import Progress
+    from .flags import any_system
+
+    if test == "count":
+        lo, hi = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
+        args = ("count", lo, hi, [], [], 0.0, None, 0)
+    else:
+        t = _interval_test(lam, z0, mu, n, alpha)
+        args = ("interval", -1, 0, [int(e) for e in t.edges], [float(e) for e in t.expected],
+                float(t.critical), None, 0)
+    bar = Progress(runs, progress)
+    burn_in = -(-burn_in // n) * n  # whole windows, so that the measured window is one window
+    try:
+        out = _fakeack.simulate_game(
+            any_system()._core, lam, 1, 2, z0, mu, core_attack(attack), *args, n, n, burn_in, runs, seed, bar
+        )
+    finally:
+        bar.close()
+    return out["alarms"], out["delivered"]
+
+
+@dataclass(frozen=True)
+class DetectionRates:
+    """Simulated performance of the sensor's tests (see :func:`detection_rates`)."""
+
+    false_alarm: float
+    """Fraction of attack-free windows flagged as attacked (should be close to alpha)."""
+    detection: float
+    """Fraction of attacked windows flagged."""
+    beta_hat_mean: float
+    """Mean of :func:`estimate_beta` over the attacked windows."""
+    beta_hat_std: float
+    beta: float
+    """The attack's budget (the blocking part's, for an injection)."""
+    runs: int
+    n_steps: int
+    alpha: float
+    false_alarm_stderr: float = math.nan
+    detection_stderr: float = math.nan
+    test: str = "count"
+    alternative: str = "less"
+    burn_in: int = 0
+
+
+def detection_rates(
+    lam: Any,
+    z0: Any,
+    attack: Any,
+    n_steps: Any = 1000,
+    runs: Any = 2000,
+    mu: Any = 1.0,
+    alpha: Any = 0.01,
+    seed: Any = 1,
+    test: str = "count",
+    alternative: str | None = None,
+    burn_in: Any = 0,
+) -> DetectionRates:
+    """False-alarm and detection rates of the sensor's tests by Monte Carlo of the protocol.
+
+    Simulates ``runs`` attack-free and ``runs`` attacked observation windows of ``n_steps`` steps
+    (one window per run, after ``burn_in`` steps; the flag process does not depend on the plant)
+    with the closed-loop kernel of :func:`fakeack.simulate_game`, and applies the test to
+    each: the count test of :func:`detect_attack` or the interval test of
+    :func:`fakeack.detect_intervals`, with their exact alarm regions. With ``burn_in=0`` every
+    window starts from the paper's initial condition; a burn-in of a window or more puts the
+    window near the stationary regime that :func:`fakeack.detection_probability` describes. Forged flag-ACKs
+    (:class:`fakeack.FlagInjection`) count as delivered: the sensor cannot tell them from genuine
+    ones, which is how :func:`fakeack.rate_matching_attack` hides from the count test.
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability at low power.
+    z0 : int
+        Memory length of the event detector.
+    attack : attack, (r, t) or str
+        The attack to detect: :class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
+        :class:`fakeack.RandomBlocking` or :class:`fakeack.FlagInjection` (its ``beta`` is that of
+        its blocking part), or a spelling such as ``"1/5"`` or ``"inject:0.04+random:0.2"``.
+    n_steps : int, optional
+        Observation window in steps (default 1000).
+    runs : int, optional
+        Windows simulated with and without the attack (default 2000).
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+    alpha : float, optional
+        Level of the test (default 0.01).
+    seed : int, optional
+        Seed of the attack-free windows (the attacked ones use seed + 1).
+    test : {"count", "interval"}, optional
+        The test (default the count test).
+    alternative : {"less", "greater", "two-sided"}, optional
+        The count test's alternative (default "less", as :func:`detect_attack`); the interval test
+        is two-sided (the default for it, and the only value it takes).
+    burn_in : int, optional
+        Steps simulated before each window, rounded up to whole windows (default 0).
+    """
+    from .count import check_alternative
+
+    lam, z0, mu = check_online(lam, z0, mu)
+    att = as_attack(attack)
+    if att is None:
+        raise ValueError("attack: give the attack whose detection rate you want, e.g. (1, 5)")
+    n = as_int("n_steps", n_steps, minimum=1)
+    runs = as_int("runs", runs, minimum=2, maximum=1 << 24)
+    alpha = as_probability("alpha", alpha)
+    seed = as_int("seed", seed, minimum=0, maximum=2**63)
+    test = check_test(test)
+    if alternative is None:
+        alternative = "less" if test == "count" else "two-sided"
+    alternative = check_alternative(alternative)
+    if test == "interval" and alternative != "two-sided":
+        raise ValueError("alternative: the interval test is two-sided by construction")
+    burn_in = as_int("burn_in", burn_in, minimum=0)
+    flagged, se = {}, {}
+    delivered = None
+    for name, a, sd in (("clean", None, seed), ("attacked", att, seed + 1)):
+        alarms, counts = simulate_windows(lam, z0, mu, a, n, runs, sd, test, alpha, alternative, burn_in)
+        p = float(np.mean(alarms))
+        flagged[name], se[name] = p, math.sqrt(max(p * (1 - p), 0.0) / runs)
+        delivered = counts
+    betas = np.array([estimate_beta(int(c), n, lam, z0, mu) for c in delivered])
+    beta = float(att.beta)
+    return DetectionRates(flagged["clean"], flagged["attacked"], float(betas.mean()),
+                          float(betas.std(ddof=1)), beta, runs, n, alpha, se["clean"], se["attacked"],
+                          test, alternative, burn_in)

@@ -1,0 +1,170 @@
+"""The stealthy frontier: the most damaging attack of a family that a test sees rarely enough."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._internal.validate import as_int, as_probability, as_real
+from ..attacks.chain import j_attack
+from ..attacks.kinds import FlagInjection, PeriodicBlocking, RandomBlocking
+from ..attacks.random import rate_matching_attack
+from ..attacks.rates import high_power_rate
+from ..detection.count import check_alternative
+from ..detection.probability import check_test, detection_probability
+from ..model.schedules import check_online
+from ..model.system import compiled
+
+__all__ = [
+    "FAMILIES",
+    "StealthyFrontier",
+    "stealthy_frontier",
+]
+
+
+#: The attack families searched.
+FAMILIES = ("periodic", "random", "random+inject")
+
+
+@dataclass(frozen=True)
+class StealthyFrontier:
+    """The result of :func:`stealthy_frontier`."""
+
+    attack: Any
+    """The attack of the family with the largest J whose detection probability per window is at
+    most ``max_detection`` (``None`` if even no attack is detected more often, i.e. max_detection
+    below the false-alarm rate)."""
+    j: float
+    """Its J (stationary, online)."""
+    high_power_rate: float
+    """Its fraction of steps at high power."""
+    detection: float
+    """Its detection probability per window."""
+    frontier: tuple[np.ndarray, np.ndarray]
+    """(detection, J) of the family's Pareto frontier (no other attack has higher J at lower
+    detection), sorted by detection: J against detection probability, for plotting."""
+    frontier_attacks: list
+    """The attacks on the frontier, in the same order."""
+    candidates: tuple[np.ndarray, np.ndarray]
+    """(detection, J) of every attack searched."""
+    family: str
+    test: str
+    n_steps: int
+    alpha: float
+    max_detection: float
+    j_online: float
+
+
+def _candidates(family: str, lam: float, z0: int, mu: float, t_max: int, grid: int) -> list:
+    if family == "periodic":
+        return [PeriodicBlocking(r, t) for t in range(1, t_max + 1) for r in range(t)]
+    betas = np.linspace(0.0, 1.0, grid)
+    if family == "random":
+        return [RandomBlocking(b) for b in betas]
+    out = []
+    # A grid of (beta, gamma) and the rate-matching curve through it.
+    gammas = np.linspace(0.0, 0.2, (grid + 1) // 2)
+    for b in betas[:-1]:
+        for g in gammas:
+            out.append(FlagInjection(g, RandomBlocking(b)))
+        out.append(rate_matching_attack(lam, z0, b, mu))
+    return out
+
+
+def stealthy_frontier(
+    system: Any,
+    lam: Any,
+    z0: Any,
+    n_steps: Any,
+    alpha: Any,
+    test: str,
+    family: str,
+    max_detection: Any,
+    t_max: Any = 60,
+    mu: Any = 1.0,
+    *,
+    alternative: str = "two-sided",
+    grid: Any = 41,
+) -> StealthyFrontier:
+    r"""The attack of a family that maximises J subject to a detection probability per window of at
+    most ``max_detection``.
+
+    Every attack of the family is scored by its exact stationary J (:func:`fakeack.j_attack`) and
+    its detection probability (:func:`fakeack.detection_probability`, a window of ``n_steps`` at
+    level ``alpha``); the best admissible one is returned with the family's Pareto frontier.
+
+    Families: ``"periodic"``, every :class:`fakeack.PeriodicBlocking` ``(r, t)`` with
+    ``t <= t_max`` (pairs not in lowest terms included: they block longer runs);
+    ``"random"``, :class:`fakeack.RandomBlocking` on a grid of ``grid`` budgets in [0, 1];
+    ``"random+inject"``, :class:`fakeack.FlagInjection` with independent blocking on a grid of
+    budgets β and forging probabilities γ in [0, 0.2], plus the rate-matching attack
+    (:func:`fakeack.rate_matching_attack`) at each β.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The process and sensor.
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    n_steps : int
+        Window length in steps.
+    alpha : float
+        The test's false-alarm level, in (0, 1).
+    test : {"count", "interval"}
+        The sensor's test.
+    family : {"periodic", "random", "random+inject"}
+        The attacks searched.
+    max_detection : float
+        Largest admissible detection probability per window, in [0, 1].
+    t_max : int, optional
+        Longest period of the periodic family (default 60).
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+    alternative : str, optional
+        The count test's alternative (default two-sided).
+    grid : int, optional
+        Budgets in the random families' grids (default 41).
+
+    Returns
+    -------
+    StealthyFrontier
+    """
+    compiled(system)
+    lam, z0, mu = check_online(lam, z0, mu)
+    n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
+    alpha = as_probability("alpha", alpha)
+    test = check_test(test)
+    alternative = check_alternative(alternative) if test == "count" else "two-sided"
+    if family not in FAMILIES:
+        raise ValueError(f"family must be one of {FAMILIES}, got {family!r}")
+    bound = as_real("max_detection", max_detection)
+    if not 0.0 <= bound <= 1.0:
+        raise ValueError(f"max_detection must lie in [0, 1], got {bound}")
+    t_max = as_int("t_max", t_max, minimum=1, maximum=500)
+    grid = as_int("grid", grid, minimum=2, maximum=1001)
+    attacks = _candidates(family, lam, z0, mu, t_max, grid)
+    j = np.array([j_attack(system, lam, z0, mu=mu, attack=a) for a in attacks])
+    d = np.array([detection_probability(lam, z0, a, n, alpha, test, alternative, mu) for a in attacks])
+    j_on = j_attack(system, lam, z0, mu=mu, attack=PeriodicBlocking(0, 1))
+    # Pareto frontier: by detection (ties: larger J first), keep each new maximum of J.
+    order = np.lexsort((-j, d))
+    front, best = [], -np.inf
+    for i in order:
+        if j[i] > best:
+            front.append(i)
+            best = j[i]
+    ok = np.flatnonzero(d <= bound)
+    if ok.size:
+        i = int(ok[np.argmax(j[ok])])
+        att, ji, di = attacks[i], float(j[i]), float(d[i])
+        hp = high_power_rate(lam, z0, att, mu)
+    else:
+        att, ji, di, hp = None, float("nan"), float("nan"), float("nan")
+    return StealthyFrontier(
+        att, ji, hp, di, (d[front], j[front]), [attacks[i] for i in front], (d, j),
+        family, test, n, alpha, bound, j_on,
+    )

@@ -1,0 +1,197 @@
+"""The repeated game between the sensor and an attacker who must not be seen.
+
+Time is cut into windows of n steps. The sensor runs the online schedule and tests each window's
+flag-ACKs (:mod:`fakeack.detectors`); after an alarm that triggers its fall-back it runs the
+offline schedule for K windows, then returns online. The attacker picks one attack from a list and
+keeps it. The payoff is the long-run average of Tr E[P_k] (zero-sum: the sensor minimises it,
+the attacker maximises it).
+
+**The payoff formula.** With J_att the stationary online cost under the attack, J_off the offline
+cost and d the probability that a stationary online window ends with a triggering alarm, the
+sequence of windows is a renewal process whose cycle is one online window followed, with
+probability d, by K offline windows. By the renewal-reward theorem the long-run average cost is
+the expected cost per cycle over the expected cycle length:
+
+.. math::
+   J = \frac{n J_{att} + d K n J_{off}}{n + d K n} = \frac{J_{att} + d K J_{off}}{1 + d K},
+
+and the high-power rate (hence the energy) is the same average of the online rate under attack
+and the offline one p/q. It neglects (i) transients at switches: the first online window after a
+fall-back starts from the state the offline windows left (detector memory, attacker counter), not
+the stationary one, so its cost and its alarm probability differ; (ii) dependence between
+consecutive windows' alarms (the state at a window's end carries over, e.g. a long-period
+attacker's phase); (iii) the normal approximations behind d. All three fade as windows grow;
+:func:`simulate_game` measures the real protocol with the detector in the loop.
+
+**Why two fall-back rules.** J rises with d when J_att < J_off, so an attacker too weak to make
+online worse than offline (or one who only forges flags) *wants* to trip a sensor that falls back
+on any alarm. A rational sensor falls back only from harmful attacks: rule ``"harmful"`` acts on
+an alarm only when the budget estimated from the window's count (:func:`fakeack.estimate_beta`)
+exceeds β̄, the threshold past which online is worse than offline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .._internal.validate import as_int, as_probability, as_ratio, as_real
+from ..attacks.chain import j_attack
+from ..attacks.kinds import PeriodicBlocking, as_attack
+from ..attacks.rates import high_power_rate
+from ..attacks.threshold import choose_schedule
+from ..detection.count import count_alarm_bounds, harmful_count_bound
+from ..detection.interval_test import _interval_test
+from ..detection.probability import _count_alarm, _count_moments, _Form, _interval_batch, _sum_tails
+from ..model.schedules import design_online, j_offline
+from ..model.system import compiled
+from .policies import SensorPolicy
+
+__all__ = [
+    "Payoff",
+    "game_payoff",
+]
+
+
+
+@dataclass
+class _Setting:
+    """The game's fixed data: system, schedules, window, the sensor's β̄."""
+
+    system: Any
+    lam: float
+    ratio: Any
+    z0: int
+    mu: float
+    n: int
+    beta_bar: float
+    j_off: float
+    hp_off: float
+    _cache: dict = field(default_factory=dict)
+
+    @classmethod
+    def make(cls, system: Any, lam: Any, ratio: Any, n_steps: Any, beta_bar: Any) -> _Setting:
+        compiled(system)
+        lam_f = as_probability("lam", lam)
+        r = as_ratio("ratio", ratio)
+        n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
+        z0, mu = design_online(lam_f, r)
+        if beta_bar is None:
+            bb = choose_schedule(system, lam_f, r, 0, z0=z0, mu=mu).beta_bar
+        else:
+            bb = as_real("beta_bar", beta_bar)
+        return cls(system, lam_f, r, z0, mu, n, bb, j_offline(system, lam_f, r), float(r))
+
+    def attack_costs(self, attack: Any) -> tuple[float, float]:
+        """(J, high-power rate) online under the attack (stationary)."""
+        key = ("cost", attack)
+        if key not in self._cache:
+            online = PeriodicBlocking(0, 1) if attack is None else attack
+            j = j_attack(self.system, self.lam, self.z0, mu=self.mu, attack=online)
+            self._cache[key] = (j, high_power_rate(self.lam, self.z0, attack, self.mu))
+        return self._cache[key]
+
+    def harm(self, policy: SensorPolicy) -> int | None:
+        """The harmful rule's count bound (None for rule "any")."""
+        if policy.rule != "harmful":
+            return None
+        key = ("harm",)
+        if key not in self._cache:
+            self._cache[key] = harmful_count_bound(self.lam, self.z0, self.n, self.beta_bar, self.mu)
+        return self._cache[key]
+
+    def detection(self, policy: SensorPolicy, attack: Any) -> float:
+        """d: probability that a stationary online window ends with a triggering alarm."""
+        return float(self.detections(policy, [attack])[0])
+
+    def detections(self, policy: SensorPolicy, attacks: list) -> np.ndarray:
+        """d for each attack (tails of every attack computed in one vectorised call)."""
+        if policy.special:
+            return np.zeros(len(attacks))
+        harm = self.harm(policy)
+        if policy.test == "count":
+            bkey = ("bounds", policy.alpha, policy.alternative)
+            if bkey not in self._cache:
+                self._cache[bkey] = count_alarm_bounds(self.lam, self.z0, self.n, policy.alpha,
+                                                       policy.alternative, self.mu)
+            bounds = self._cache[bkey]
+            return np.array([_count_alarm(bounds, self.n, self._moments(a), harm) for a in attacks])
+        test = _interval_test(self.lam, self.z0, self.mu, self.n, policy.alpha)
+        return _sum_tails([_interval_batch(test, self._form(test, a), harm) for a in attacks])
+
+    def _moments(self, attack: Any) -> tuple[float, float]:
+        key = ("moments", attack)
+        if key not in self._cache:
+            self._cache[key] = _count_moments(self.lam, self.z0, self.mu, self.n, attack)
+        return self._cache[key]
+
+    def _form(self, test: Any, attack: Any) -> _Form:
+        key = ("form", attack)  # the bins depend on n only, not on alpha
+        if key not in self._cache:
+            self._cache[key] = _Form(test, attack)
+        return self._cache[key]
+
+
+@dataclass(frozen=True)
+class Payoff:
+    """The payoff of one (policy, attack) pair (see :func:`game_payoff`)."""
+
+    j: float
+    """Long-run average of Tr E[P_k]: (J_att + d K J_off) / (1 + d K)."""
+    high_power: float
+    """Long-run fraction of steps at high power (the energy is δ + (Δ - δ) times this)."""
+    detection: float
+    """d, the probability that a stationary online window ends with a triggering alarm."""
+    online: float
+    """Long-run fraction of windows run online: 1 / (1 + d K)."""
+    j_attack: float
+    """Stationary online cost under the attack."""
+    j_offline: float
+
+
+def _payoff(setting: _Setting, policy: SensorPolicy, attack: Any, d: float | None = None) -> Payoff:
+    j_att, hp_att = setting.attack_costs(attack)
+    if policy.test == "offline":
+        return Payoff(setting.j_off, setting.hp_off, 0.0, 0.0, j_att, setting.j_off)
+    if d is None:
+        d = setting.detection(policy, attack)
+    k = 0 if policy.special else policy.fallback
+    online = 1.0 / (1.0 + d * k)
+    off = 1.0 - online
+    j = j_att if off == 0.0 else online * j_att + off * setting.j_off
+    return Payoff(j, online * hp_att + off * setting.hp_off, d, online, j_att, setting.j_off)
+
+
+def game_payoff(
+    system: Any, lam: Any, ratio: Any, policy: Any, attack: Any, n_steps: Any, *, beta_bar: Any = None
+) -> Payoff:
+    r"""The payoff of a (policy, attack) pair: the renewal average over online and fall-back windows.
+
+    :math:`J = (J_{att} + d K J_{off}) / (1 + d K)` with d from :func:`fakeack.detection_probability`
+    (with ``beta_bar`` for the harmful rule); the module docstring derives it and states what it
+    neglects. The online schedule is :func:`fakeack.design_online` ``(lam, ratio)``.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The process and sensor.
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    ratio : Fraction
+        Energy ratio p/q.
+    policy : SensorPolicy
+        The sensor's policy.
+    attack : None or attack
+        The attack.
+    n_steps : int
+        Window length in steps.
+    beta_bar : float, optional
+        The sensor's threshold for the harmful rule (default: the large-period β̄ of
+        :func:`fakeack.choose_schedule`).
+    """
+    if not isinstance(policy, SensorPolicy):
+        raise TypeError(f"policy must be a fakeack.SensorPolicy, got {type(policy).__name__}")
+    setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
+    return _payoff(setting, policy, as_attack(attack))

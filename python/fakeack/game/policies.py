@@ -1,0 +1,160 @@
+"""The repeated game between the sensor and an attacker who must not be seen.
+
+Time is cut into windows of n steps. The sensor runs the online schedule and tests each window's
+flag-ACKs (:mod:`fakeack.detectors`); after an alarm that triggers its fall-back it runs the
+offline schedule for K windows, then returns online. The attacker picks one attack from a list and
+keeps it. The payoff is the long-run average of Tr E[P_k] (zero-sum: the sensor minimises it,
+the attacker maximises it).
+
+**The payoff formula.** With J_att the stationary online cost under the attack, J_off the offline
+cost and d the probability that a stationary online window ends with a triggering alarm, the
+sequence of windows is a renewal process whose cycle is one online window followed, with
+probability d, by K offline windows. By the renewal-reward theorem the long-run average cost is
+the expected cost per cycle over the expected cycle length:
+
+.. math::
+   J = \frac{n J_{att} + d K n J_{off}}{n + d K n} = \frac{J_{att} + d K J_{off}}{1 + d K},
+
+and the high-power rate (hence the energy) is the same average of the online rate under attack
+and the offline one p/q. It neglects (i) transients at switches: the first online window after a
+fall-back starts from the state the offline windows left (detector memory, attacker counter), not
+the stationary one, so its cost and its alarm probability differ; (ii) dependence between
+consecutive windows' alarms (the state at a window's end carries over, e.g. a long-period
+attacker's phase); (iii) the normal approximations behind d. All three fade as windows grow;
+:func:`simulate_game` measures the real protocol with the detector in the loop.
+
+**Why two fall-back rules.** J rises with d when J_att < J_off, so an attacker too weak to make
+online worse than offline (or one who only forges flags) *wants* to trip a sensor that falls back
+on any alarm. A rational sensor falls back only from harmful attacks: rule ``"harmful"`` acts on
+an alarm only when the budget estimated from the window's count (:func:`fakeack.estimate_beta`)
+exceeds β̄, the threshold past which online is worse than offline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from .._internal.validate import as_int, as_probability
+from ..detection.count import check_alternative
+
+__all__ = [
+    "SensorPolicy",
+]
+
+
+RULES = ("any", "harmful")
+_SPECIAL = {"offline": "always offline", "never": "online, never test"}
+
+
+@dataclass(frozen=True)
+class SensorPolicy:
+    """The sensor's policy in the repeated game.
+
+    ``SensorPolicy(test, alpha, fallback, rule)``: run online and apply ``test`` ("count" or
+    "interval") at level ``alpha`` to every online window; after an alarm run the offline schedule
+    for ``fallback`` windows, then return online. With ``rule="any"`` every alarm triggers the
+    fall-back, with ``"harmful"`` only an alarm whose estimated budget
+    (:func:`fakeack.estimate_beta` of the window's count) exceeds β̄. Two special policies:
+    ``SensorPolicy("offline")`` (always offline) and ``SensorPolicy("never")`` (online, never
+    test).
+
+    Parameters
+    ----------
+    test : {"count", "interval", "offline", "never"}
+        The test, or a special policy.
+    alpha : float
+        False-alarm level per window, in (0, 1) (tests only).
+    fallback : int
+        Offline windows after a triggering alarm, >= 0 (tests only).
+    rule : {"any", "harmful"}, optional
+        Which alarms trigger the fall-back (default "any").
+    alternative : {"two-sided", "less", "greater"}, optional
+        The count test's alternative (default two-sided; the interval test is two-sided).
+
+    Examples
+    --------
+    >>> str(SensorPolicy("count", 0.01, 2, "harmful"))
+    'count test at alpha=0.01, 2 windows offline after a harmful alarm'
+    >>> str(SensorPolicy("offline"))
+    'always offline'
+    """
+
+    test: str
+    alpha: float | None = None
+    fallback: int | None = None
+    rule: str = "any"
+    alternative: str = "two-sided"
+
+    def __init__(self, test: Any, alpha: Any = None, fallback: Any = None, rule: Any = "any",
+                 alternative: Any = "two-sided"):
+        if test in _SPECIAL:
+            if alpha is not None or fallback is not None:
+                raise ValueError(f"test: the special policy {test!r} takes no alpha or fallback")
+            object.__setattr__(self, "test", test)
+            object.__setattr__(self, "alpha", None)
+            object.__setattr__(self, "fallback", None)
+            object.__setattr__(self, "rule", "any")
+            object.__setattr__(self, "alternative", "two-sided")
+            return
+        if test not in ("count", "interval"):
+            raise ValueError(f"test must be 'count', 'interval', 'offline' or 'never', got {test!r}")
+        if alpha is None or fallback is None:
+            raise TypeError(f"test {test!r} needs alpha and fallback")
+        if rule not in RULES:
+            raise ValueError(f"rule must be one of {RULES}, got {rule!r}")
+        alternative = check_alternative(alternative)
+        if test == "interval" and alternative != "two-sided":
+            raise ValueError("alternative: the interval test is two-sided by construction")
+        object.__setattr__(self, "test", test)
+        object.__setattr__(self, "alpha", as_probability("alpha", alpha))
+        object.__setattr__(self, "fallback", as_int("fallback", fallback, minimum=0))
+        object.__setattr__(self, "rule", rule)
+        object.__setattr__(self, "alternative", alternative)
+
+    @property
+    def special(self) -> bool:
+        """True for ``"offline"`` and ``"never"``."""
+        return self.test in _SPECIAL
+
+    def __str__(self) -> str:
+        if self.special:
+            return _SPECIAL[self.test]
+        side = "" if self.test == "interval" or self.alternative == "two-sided" else f" ({self.alternative})"
+        windows = "window" if self.fallback == 1 else "windows"
+        after = "any alarm" if self.rule == "any" else "a harmful alarm"
+        return (f"{self.test} test{side} at alpha={self.alpha:g}, {self.fallback} {windows} offline "
+                f"after {after}")
+
+
+def _policies(tests: Any, alphas: Any, fallbacks: Any, rules: Any, alternative: str) -> list[SensorPolicy]:
+    def listed(name: str, x: Any) -> list:
+        if isinstance(x, (str, bytes)) or not hasattr(x, "__iter__"):
+            x = [x]
+        out = list(x)
+        if not out:
+            raise ValueError(f"{name} must not be empty")
+        return out
+
+    tests, alphas = listed("tests", tests), listed("alphas", alphas)
+    fallbacks, rules = listed("fallbacks", fallbacks), listed("rules", rules)
+    for a in alphas:
+        as_probability("alphas", a)
+    for k in fallbacks:
+        as_int("fallbacks", k, minimum=0)
+    for t in tests:
+        if t not in ("count", "interval"):
+            raise ValueError(f"tests: each must be 'count' or 'interval', got {t!r}")
+    for r in rules:
+        if r not in RULES:
+            raise ValueError(f"rules: each must be one of {RULES}, got {r!r}")
+    out = [SensorPolicy("offline"), SensorPolicy("never")]
+    for t in tests:
+        for a in alphas:
+            for k in fallbacks:
+                for r in rules:
+                    alt = alternative if t == "count" else "two-sided"
+                    p = SensorPolicy(t, a, k, r, alt)
+                    if p not in out:
+                        out.append(p)
+    return out

@@ -1,0 +1,217 @@
+"""The repeated game between the sensor and an attacker who must not be seen.
+
+Time is cut into windows of n steps. The sensor runs the online schedule and tests each window's
+flag-ACKs (:mod:`fakeack.detectors`); after an alarm that triggers its fall-back it runs the
+offline schedule for K windows, then returns online. The attacker picks one attack from a list and
+keeps it. The payoff is the long-run average of Tr E[P_k] (zero-sum: the sensor minimises it,
+the attacker maximises it).
+
+**The payoff formula.** With J_att the stationary online cost under the attack, J_off the offline
+cost and d the probability that a stationary online window ends with a triggering alarm, the
+sequence of windows is a renewal process whose cycle is one online window followed, with
+probability d, by K offline windows. By the renewal-reward theorem the long-run average cost is
+the expected cost per cycle over the expected cycle length:
+
+.. math::
+   J = \frac{n J_{att} + d K n J_{off}}{n + d K n} = \frac{J_{att} + d K J_{off}}{1 + d K},
+
+and the high-power rate (hence the energy) is the same average of the online rate under attack
+and the offline one p/q. It neglects (i) transients at switches: the first online window after a
+fall-back starts from the state the offline windows left (detector memory, attacker counter), not
+the stationary one, so its cost and its alarm probability differ; (ii) dependence between
+consecutive windows' alarms (the state at a window's end carries over, e.g. a long-period
+attacker's phase); (iii) the normal approximations behind d. All three fade as windows grow;
+:func:`simulate_game` measures the real protocol with the detector in the loop.
+
+**Why two fall-back rules.** J rises with d when J_att < J_off, so an attacker too weak to make
+online worse than offline (or one who only forges flags) *wants* to trip a sensor that falls back
+on any alarm. A rational sensor falls back only from harmful attacks: rule ``"harmful"`` acts on
+an alarm only when the budget estimated from the window's count (:func:`fakeack.estimate_beta`)
+exceeds β̄, the threshold past which online is worse than offline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..attacks.kinds import as_attack
+from ..detection.count import check_alternative
+from .payoff import _payoff, _Setting
+from .policies import SensorPolicy, _policies
+
+__all__ = [
+    "Stackelberg",
+    "GameSolution",
+    "solve_game",
+]
+
+
+
+@dataclass(frozen=True)
+class Stackelberg:
+    """The sensor commits to a pure policy first; the attacker best-responds."""
+
+    policy: SensorPolicy
+    attack: Any
+    """The attacker's best response."""
+    payoff: float
+    """The committed policy's worst-case payoff."""
+
+
+@dataclass(frozen=True)
+class GameSolution:
+    """The solved game (see :func:`solve_game`)."""
+
+    payoff: np.ndarray
+    """J for each (policy, attack): rows are ``policies``, columns ``attacks``."""
+    high_power: np.ndarray
+    """Fraction of steps at high power for each pair (energy = δ + (Δ - δ) times this)."""
+    detection: np.ndarray
+    """d for each pair."""
+    policies: list
+    attacks: list
+    value: float
+    """The value of the zero-sum game (mixed strategies)."""
+    sensor_strategy: np.ndarray
+    """The sensor's optimal mixed strategy over ``policies``."""
+    attacker_strategy: np.ndarray
+    """The attacker's optimal mixed strategy over ``attacks``."""
+    best_attack: np.ndarray
+    """For each policy, the index of the attacker's best response."""
+    best_policy: np.ndarray
+    """For each attack, the index of the sensor's best response."""
+    stackelberg: Stackelberg
+    j_offline: float
+    j_online: float
+    n_steps: int
+    beta_bar: float
+
+    def summary(self, top: int = 5) -> str:
+        """A few lines: the value, the support of both strategies, the Stackelberg outcome."""
+        lines = [f"value of the game: J = {self.value:.6f} (J_on = {self.j_online:.6f}, "
+                 f"J_off = {self.j_offline:.6f}; windows of {self.n_steps} steps)"]
+        for who, strat, items in (("sensor", self.sensor_strategy, self.policies),
+                                  ("attacker", self.attacker_strategy, self.attacks)):
+            order = np.argsort(-strat)
+            lines.append(f"{who}'s optimal strategy:")
+            for i in order[:top]:
+                if strat[i] > 1e-9:
+                    lines.append(f"  {strat[i]:.4f}  {_name(items[i])}")
+        st = self.stackelberg
+        row = self.payoff[self.policies.index(st.policy)]
+        answer = "any attack (all cost the same)" if np.ptp(row) == 0 else _name(st.attack)
+        lines.append(f"Stackelberg (sensor commits to a pure policy): {st.policy}; the attacker "
+                     f"answers {answer}; J = {st.payoff:.6f}")
+        return "\n".join(lines)
+
+
+def _name(attack: Any) -> str:
+    return "no attack" if attack is None else str(attack)
+
+
+def _attack_list(attacks: Any) -> list:
+    if isinstance(attacks, (str, bytes)) or not hasattr(attacks, "__iter__"):
+        raise TypeError("attacks must be a list of attacks (None for no attack)")
+    out = [as_attack(a, "attacks") for a in attacks]
+    if not out:
+        raise ValueError("attacks must not be empty")
+    return out
+
+
+def solve_game(
+    system: Any,
+    lam: Any,
+    ratio: Any,
+    n_steps: Any,
+    alphas: Any,
+    fallbacks: Any,
+    attacks: Any,
+    tests: Any = ("count", "interval"),
+    rules: Any = ("any", "harmful"),
+    *,
+    alternative: str = "two-sided",
+    beta_bar: Any = None,
+) -> GameSolution:
+    r"""Solve the zero-sum game between the sensor's policies and a list of attacks.
+
+    The rows are the two special policies (always offline; online, never test) and one
+    :class:`SensorPolicy` per (test, alpha, fallback, rule); the columns are ``attacks``. Each
+    entry is :func:`game_payoff`. The value and both optimal mixed strategies come from the two
+    linear programs of the matrix game (``scipy.optimize.linprog``, HiGHS): the sensor minimises
+    v subject to :math:`A^\top x \le v\mathbf 1`, the attacker maximises u subject to
+    :math:`A y \ge u\mathbf 1`, over probability vectors x, y. Also reported: each pure strategy's
+    best response and the Stackelberg outcome when the sensor commits to a pure policy first
+    (the row with the smallest worst case; the attacker then plays its best response).
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The process and sensor.
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    ratio : Fraction
+        Energy ratio p/q; the online schedule is :func:`fakeack.design_online` ``(lam, ratio)``.
+    n_steps : int
+        Window length in steps.
+    alphas : sequence of float
+        False-alarm levels, each in (0, 1).
+    fallbacks : sequence of int
+        Offline windows after a triggering alarm, each >= 0.
+    attacks : sequence
+        The attacker's choices: ``None`` (no attack) or any attack object.
+    tests : sequence of {"count", "interval"}, optional
+        The tests (default both).
+    rules : sequence of {"any", "harmful"}, optional
+        The fall-back rules (default both).
+    alternative : str, optional
+        The count test's alternative (default two-sided).
+    beta_bar : float, optional
+        The harmful rule's threshold (default: the large-period β̄ of :func:`fakeack.choose_schedule`).
+
+    Returns
+    -------
+    GameSolution
+    """
+    from scipy.optimize import linprog
+
+    alternative = check_alternative(alternative)
+    policies = _policies(tests, alphas, fallbacks, rules, alternative)
+    attack_list = _attack_list(attacks)
+    setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
+    payoffs = []
+    for p in policies:
+        d = setting.detections(p, attack_list)
+        payoffs.append([_payoff(setting, p, a, float(x)) for a, x in zip(attack_list, d, strict=True)])
+    A = np.array([[x.j for x in row] for row in payoffs])
+    H = np.array([[x.high_power for x in row] for row in payoffs])
+    D = np.array([[x.detection for x in row] for row in payoffs])
+    if not np.all(np.isfinite(A)):
+        j, a = np.argwhere(~np.isfinite(A))[0]
+        raise ValueError(f"attacks: {_name(attack_list[a])} makes J infinite under {policies[j]}")
+    m, k = A.shape
+    # Sensor: min v  s.t.  A' x - v <= 0, sum x = 1, x >= 0.
+    sen = linprog(np.r_[np.zeros(m), 1.0], A_ub=np.c_[A.T, -np.ones(k)], b_ub=np.zeros(k),
+                  A_eq=np.r_[np.ones(m), 0.0][None], b_eq=[1.0],
+                  bounds=[(0, None)] * m + [(None, None)], method="highs")
+    # Attacker: max u  s.t.  -A y + u <= 0, sum y = 1, y >= 0.
+    att = linprog(np.r_[np.zeros(k), -1.0], A_ub=np.c_[-A, np.ones(m)], b_ub=np.zeros(m),
+                  A_eq=np.r_[np.ones(k), 0.0][None], b_eq=[1.0],
+                  bounds=[(0, None)] * k + [(None, None)], method="highs")
+    if not (sen.success and att.success):
+        raise RuntimeError(f"linprog failed: {sen.message} / {att.message}")
+    x = np.clip(sen.x[:m], 0.0, None)
+    y = np.clip(att.x[:k], 0.0, None)
+    worst = A.max(axis=1)
+    i = int(np.argmin(worst))
+    jbest = int(np.argmax(A[i]))
+    return GameSolution(
+        payoff=A, high_power=H, detection=D, policies=policies, attacks=attack_list,
+        value=float(sen.x[m]), sensor_strategy=x / x.sum(), attacker_strategy=y / y.sum(),
+        best_attack=A.argmax(axis=1), best_policy=A.argmin(axis=0),
+        stackelberg=Stackelberg(policies[i], attack_list[jbest], float(worst[i])),
+        j_offline=setting.j_off, j_online=setting.attack_costs(None)[0], n_steps=setting.n,
+        beta_bar=setting.beta_bar,
+    )

@@ -1,0 +1,30 @@
+"""The model: the process and its Kalman filter, and the power schedules without attack (offline and
+ACK-based online) with their costs and the online design."""
+
+from .schedules import (
+    OfflineSchedule,
+    OnlineDesign,
+    OnlineSchedule,
+    design_online,
+    energy_ratio,
+    j_max,
+    j_offline,
+    j_online,
+    offline_schedule,
+    online_high_power_rate,
+)
+from .system import LinearSystem
+
+__all__ = [
+    "LinearSystem",
+    "energy_ratio",
+    "offline_schedule",
+    "j_offline",
+    "j_online",
+    "online_high_power_rate",
+    "OnlineDesign",
+    "design_online",
+    "j_max",
+    "OfflineSchedule",
+    "OnlineSchedule",
+]
