@@ -412,7 +412,7 @@ def test_readme_slurm_example_builds_its_job_script(monkeypatch):
         jobqueue = pytest.importorskip("dask_jobqueue")
     finally:
         signal.signal(signal.SIGINT, handler)
-    readme = (Path(__file__).parent.parent / "README.md").read_text()
+    readme = (Path(__file__).parent.parent / "docs" / "parameter-studies.md").read_text()
     start = readme.index("from dask_jobqueue import SLURMCluster")
     code = readme[start : readme.index("cluster.scale", start)]
     real = jobqueue.SLURMCluster
@@ -423,7 +423,7 @@ def test_readme_slurm_example_builds_its_job_script(monkeypatch):
 
     monkeypatch.setattr(jobqueue, "SLURMCluster", local)
     scope: dict = {}
-    exec(compile(code, "README.md", "exec"), scope)  # noqa: S102
+    exec(compile(code, "docs/parameter-studies.md", "exec"), scope)  # noqa: S102
     cluster = scope["cluster"]
     try:
         script = cluster.job_script()
