@@ -160,10 +160,10 @@ def interval_test(lam: Any, z0: Any, n_steps: Any, alpha: Any = 0.01, mu: Any = 
     lam, z0, mu = check_online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
     alpha = as_probability("alpha", alpha)
-    return _interval_test(lam, z0, mu, n, alpha)
+    return cached_interval_test(lam, z0, mu, n, alpha)
 
 
-def _interval_test(lam: float, z0: int, mu: float, n: int, alpha: float) -> IntervalTest:
+def cached_interval_test(lam: float, z0: int, mu: float, n: int, alpha: float) -> IntervalTest:
     key = (lam, z0, mu, n, alpha)
     if key in _TESTS:
         return _TESTS[key]

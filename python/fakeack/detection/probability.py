@@ -33,7 +33,7 @@ from .count import (
     harmful_count_bound,
 )
 from .flags import estimate_beta
-from .interval_test import IntervalTest, _interval_test
+from .interval_test import IntervalTest, cached_interval_test
 from .intervals import walk
 
 __all__ = [
@@ -55,13 +55,11 @@ def check_test(test: Any) -> str:
     return test
 
 
-
-
 # ---------------------------------------------------------------------------------------------
 # Detection probabilities.
 
 
-def _count_moments(lam: float, z0: int, mu: float, n: int, attack: Any) -> tuple[float, float]:
+def count_moments(lam: float, z0: int, mu: float, n: int, attack: Any) -> tuple[float, float]:
     """(mean, sd) of a stationary window's count under the attack (:func:`flag_count_moments`)."""
     w = walk(lam, z0, attack, mu)
     if w.endless:
@@ -70,7 +68,9 @@ def _count_moments(lam: float, z0: int, mu: float, n: int, attack: Any) -> tuple
     return n / w.mean, math.sqrt(max(n * float(sig[0, 0]), 0.0))
 
 
-def _count_alarm(bounds: tuple[int, int], n: int, moments: tuple[float, float], harm: int | None) -> float:
+def count_alarm_probability(
+    bounds: tuple[int, int], n: int, moments: tuple[float, float], harm: int | None
+) -> float:
     """P(count alarm) for a normal count with continuity correction; with ``harm``, only alarms
     with N <= harm (an estimated budget above β̄)."""
     lo, hi = bounds
@@ -94,7 +94,7 @@ def _count_alarm(bounds: tuple[int, int], n: int, moments: tuple[float, float], 
 
 def _count_probability(lam, z0, mu, n, alpha, alternative, attack, harm):
     bounds = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
-    return _count_alarm(bounds, n, _count_moments(lam, z0, mu, n, attack), harm)
+    return count_alarm_probability(bounds, n, count_moments(lam, z0, mu, n, attack), harm)
 
 
 def _attack_form(test: IntervalTest, attack: Any) -> tuple[np.ndarray, np.ndarray] | None:
@@ -115,7 +115,7 @@ def _attack_form(test: IntervalTest, attack: Any) -> tuple[np.ndarray, np.ndarra
 _NODES, _WEIGHTS = np.polynomial.legendre.leggauss(24)
 
 
-class _Form:
+class AttackForm:
     """The interval statistic under one attack, ready for tails at any critical value.
 
     X² = y'y with y ~ N(mean, cov) (:func:`_attack_form`). For the harmful rule the count enters
@@ -179,8 +179,8 @@ class _Form:
         return lam, b, delta, c - s**2, wq * dens
 
 
-def _sum_tails(batches: list) -> np.ndarray:
-    """Σ weight · tail per batch (a batch is a probability, or rows from :class:`_Form`), in one
+def sum_tails(batches: list) -> np.ndarray:
+    """Σ weight · tail per batch (a batch is a probability, or rows from :class:`AttackForm`), in one
     vectorised call."""
     out = np.zeros(len(batches))
     rows = [(i, r) for i, r in enumerate(batches) if not isinstance(r, float)]
@@ -194,8 +194,8 @@ def _sum_tails(batches: list) -> np.ndarray:
     lam, b = np.zeros((sum(sizes), k)), np.zeros((sum(sizes), k))
     at = 0
     for (_, r), size in zip(rows, sizes, strict=True):
-        lam[at:at + size, : r[0].shape[1]] = r[0]
-        b[at:at + size, : r[1].shape[1]] = r[1]
+        lam[at : at + size, : r[0].shape[1]] = r[0]
+        b[at : at + size, : r[1].shape[1]] = r[1]
         at += size
     delta = np.concatenate([r[2] for _, r in rows])
     x = np.concatenate([r[3] for _, r in rows])
@@ -207,7 +207,7 @@ def _sum_tails(batches: list) -> np.ndarray:
     return np.clip(out, 0.0, 1.0)
 
 
-def _interval_batch(test: IntervalTest, form: _Form, harm: int | None) -> tuple | float:
+def interval_batch(test: IntervalTest, form: AttackForm, harm: int | None) -> tuple | float:
     """One attack's rows for the interval test's (harmful) alarm probability."""
     if form.none:
         return float(form.total > test.critical and (harm is None or harm >= 0))
@@ -222,13 +222,13 @@ def _interval_batch(test: IntervalTest, form: _Form, harm: int | None) -> tuple 
 
 
 def _interval_probability(test: IntervalTest, attack: Any, harm: int | None) -> float:
-    return float(_sum_tails([_interval_batch(test, _Form(test, attack), harm)])[0])
+    return float(sum_tails([interval_batch(test, AttackForm(test, attack), harm)])[0])
 
 
 def _joint_tail(test: IntervalTest, attack: Any, s_hi: float) -> float:
     """P(X² > c and ŵ'y <= s_hi) under the attack (for the tests)."""
-    form = _Form(test, attack)
-    return float(_sum_tails([form.rows_joint(test.critical, s_hi)])[0])
+    form = AttackForm(test, attack)
+    return float(sum_tails([form.rows_joint(test.critical, s_hi)])[0])
 
 
 def detection_probability(
@@ -305,15 +305,23 @@ def detection_probability(
     if test == "count":
         return _count_probability(lam, z0, mu, n, alpha, alternative, att, harm)
     if alternative != "two-sided":
-        raise ValueError(
-            f"alternative: the interval test is two-sided by construction, got {alternative!r}"
-        )
-    return _interval_probability(_interval_test(lam, z0, mu, n, alpha), att, harm)
+        raise ValueError(f"alternative: the interval test is two-sided by construction, got {alternative!r}")
+    return _interval_probability(cached_interval_test(lam, z0, mu, n, alpha), att, harm)
 
 
 def simulate_windows(
-    lam: float, z0: int, mu: float, attack: Any, n: int, runs: int, seed: int, test: str, alpha: float,
-    alternative: str, burn_in: int, progress: bool | None = False,
+    lam: float,
+    z0: int,
+    mu: float,
+    attack: Any,
+    n: int,
+    runs: int,
+    seed: int,
+    test: str,
+    alpha: float,
+    alternative: str,
+    burn_in: int,
+    progress: bool | None = False,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Alarms (0/1) and delivered flag-ACKs of ``runs`` simulated windows of ``n`` steps, one per run,
     after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back)."""
@@ -324,9 +332,17 @@ def simulate_windows(
         lo, hi = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
         args = ("count", lo, hi, [], [], 0.0, None, 0)
     else:
-        t = _interval_test(lam, z0, mu, n, alpha)
-        args = ("interval", -1, 0, [int(e) for e in t.edges], [float(e) for e in t.expected],
-                float(t.critical), None, 0)
+        t = cached_interval_test(lam, z0, mu, n, alpha)
+        args = (
+            "interval",
+            -1,
+            0,
+            [int(e) for e in t.edges],
+            [float(e) for e in t.expected],
+            float(t.critical),
+            None,
+            0,
+        )
     bar = Progress(runs, progress)
     burn_in = -(-burn_in // n) * n  # whole windows, so that the measured window is one window
     try:
@@ -440,6 +456,18 @@ def detection_rates(
         delivered = counts
     betas = np.array([estimate_beta(int(c), n, lam, z0, mu) for c in delivered])
     beta = float(att.beta)
-    return DetectionRates(flagged["clean"], flagged["attacked"], float(betas.mean()),
-                          float(betas.std(ddof=1)), beta, runs, n, alpha, se["clean"], se["attacked"],
-                          test, alternative, burn_in)
+    return DetectionRates(
+        flagged["clean"],
+        flagged["attacked"],
+        float(betas.mean()),
+        float(betas.std(ddof=1)),
+        beta,
+        runs,
+        n,
+        alpha,
+        se["clean"],
+        se["attacked"],
+        test,
+        alternative,
+        burn_in,
+    )

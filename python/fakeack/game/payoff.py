@@ -43,8 +43,14 @@ from ..attacks.kinds import PeriodicBlocking, as_attack
 from ..attacks.rates import high_power_rate
 from ..attacks.threshold import choose_schedule
 from ..detection.count import count_alarm_bounds, harmful_count_bound
-from ..detection.interval_test import _interval_test
-from ..detection.probability import _count_alarm, _count_moments, _Form, _interval_batch, _sum_tails
+from ..detection.interval_test import cached_interval_test
+from ..detection.probability import (
+    AttackForm,
+    count_alarm_probability,
+    count_moments,
+    interval_batch,
+    sum_tails,
+)
 from ..model.schedules import design_online, j_offline
 from ..model.system import compiled
 from .policies import SensorPolicy
@@ -53,7 +59,6 @@ __all__ = [
     "Payoff",
     "game_payoff",
 ]
-
 
 
 @dataclass
@@ -114,23 +119,26 @@ class _Setting:
         if policy.test == "count":
             bkey = ("bounds", policy.alpha, policy.alternative)
             if bkey not in self._cache:
-                self._cache[bkey] = count_alarm_bounds(self.lam, self.z0, self.n, policy.alpha,
-                                                       policy.alternative, self.mu)
+                self._cache[bkey] = count_alarm_bounds(
+                    self.lam, self.z0, self.n, policy.alpha, policy.alternative, self.mu
+                )
             bounds = self._cache[bkey]
-            return np.array([_count_alarm(bounds, self.n, self._moments(a), harm) for a in attacks])
-        test = _interval_test(self.lam, self.z0, self.mu, self.n, policy.alpha)
-        return _sum_tails([_interval_batch(test, self._form(test, a), harm) for a in attacks])
+            return np.array(
+                [count_alarm_probability(bounds, self.n, self._moments(a), harm) for a in attacks]
+            )
+        test = cached_interval_test(self.lam, self.z0, self.mu, self.n, policy.alpha)
+        return sum_tails([interval_batch(test, self._form(test, a), harm) for a in attacks])
 
     def _moments(self, attack: Any) -> tuple[float, float]:
         key = ("moments", attack)
         if key not in self._cache:
-            self._cache[key] = _count_moments(self.lam, self.z0, self.mu, self.n, attack)
+            self._cache[key] = count_moments(self.lam, self.z0, self.mu, self.n, attack)
         return self._cache[key]
 
-    def _form(self, test: Any, attack: Any) -> _Form:
+    def _form(self, test: Any, attack: Any) -> AttackForm:
         key = ("form", attack)  # the bins depend on n only, not on alpha
         if key not in self._cache:
-            self._cache[key] = _Form(test, attack)
+            self._cache[key] = AttackForm(test, attack)
         return self._cache[key]
 
 

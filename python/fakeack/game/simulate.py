@@ -43,7 +43,7 @@ from .._internal.progress import Progress
 from .._internal.validate import as_int
 from ..attacks.kinds import as_attack, core_attack
 from ..detection.count import count_alarm_bounds, harmful_count_bound
-from ..detection.interval_test import _interval_test
+from ..detection.interval_test import cached_interval_test
 from ..model.system import compiled
 from .payoff import _Setting
 from .policies import SensorPolicy
@@ -208,6 +208,6 @@ def _kernel_policy(setting: _Setting, policy: SensorPolicy) -> tuple:
         lo, hi = count_alarm_bounds(setting.lam, setting.z0, setting.n, policy.alpha, policy.alternative,
                                     setting.mu)
         return ("count", lo, hi, [], [], 0.0, harm, policy.fallback)
-    t = _interval_test(setting.lam, setting.z0, setting.mu, setting.n, policy.alpha)
+    t = cached_interval_test(setting.lam, setting.z0, setting.mu, setting.n, policy.alpha)
     return ("interval", -1, 0, [int(e) for e in t.edges], [float(e) for e in t.expected], float(t.critical),
             harm, policy.fallback)
