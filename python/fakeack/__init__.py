@@ -31,6 +31,7 @@ from .attacks import (
     j_attack_limit,
     j_attack_pattern,
     num_states,
+    online_high_power_rate,
     random_blocking_sweep,
     rate_matching_attack,
     stationary_distribution,
@@ -80,7 +81,6 @@ from .model import (
     j_offline,
     j_online,
     offline_schedule,
-    online_high_power_rate,
 )
 from .montecarlo import (
     SimulationResult,

@@ -20,7 +20,7 @@ from .kinds import (
     as_attack,
 )
 from .random import RandomSweep, beta_bar_random, random_blocking_sweep, rate_matching_attack
-from .rates import energy_per_step, high_power_rate
+from .rates import energy_per_step, high_power_rate, online_high_power_rate
 from .threshold import (
     BetaBar,
     BetaSweep,
@@ -61,6 +61,7 @@ __all__ = [
     "worst_mask",
     "high_power_rate",
     "energy_per_step",
+    "online_high_power_rate",
     "beta_bar_random",
     "RandomSweep",
     "random_blocking_sweep",

@@ -12,9 +12,9 @@ from .kinds import as_attack, core_attack
 
 __all__ = [
     "high_power_rate",
+    "online_high_power_rate",
     "energy_per_step",
 ]
-
 
 
 def high_power_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
@@ -23,8 +23,14 @@ def high_power_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> flo
     The sensor uses high power after every flag-ACK that reaches it, genuine or forged, so this is
     the rate of delivered plus forged flags: with ``s`` genuine flags sent per step, a blocking
     attack delivers a fraction of them and a :class:`fakeack.FlagInjection` adds
-    :math:`\gamma(1 - s)` forged ones. Without attack it is
-    :func:`fakeack.online_high_power_rate`.
+    :math:`\gamma(1 - s)` forged ones. Without attack (``attack=None``) it is the online
+    schedule's rate in closed form (Model note 2),
+
+    .. math:: \frac{\lambda a^{z_0}(\mu + (1-\mu)a)}{1 - \mu a^{z_0+1} - (1-\mu)a^{z_0+2}}.
+
+    This is the one high-power rate of the package: :func:`fakeack.online_high_power_rate` is its
+    attack-free case and :func:`fakeack.delivered_flag_rate` the same function under the name of
+    the flag-ACKs it counts.
 
     Parameters
     ----------
@@ -46,7 +52,33 @@ def high_power_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> flo
     1.0
     """
     lam, z0, mu = check_online(lam, z0, mu)
-    return _fakeack.flag_rates(lam, z0, mu, core_attack(as_attack(attack)))[1]
+    att = as_attack(attack)
+    if att is None:
+        return _fakeack.high_power_rate(lam, z0, mu)
+    return _fakeack.flag_rates(lam, z0, mu, core_attack(att))[1]
+
+
+def online_high_power_rate(lam: Any, z0: Any, mu: Any = 1.0) -> float:
+    r"""Long-run fraction of steps at high power under :math:`\theta_{\mathrm{on}}` without attack
+    (Model note 2): :func:`high_power_rate` with ``attack=None``.
+
+    .. math:: \frac{\lambda a^{z_0}(\mu + (1-\mu)a)}{1 - \mu a^{z_0+1} - (1-\mu)a^{z_0+2}}
+
+    Parameters
+    ----------
+    lam : float
+        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    z0 : int
+        Memory length of the event detector.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+
+    Examples
+    --------
+    >>> round(online_high_power_rate(0.5, 2), 12)    # 1/7
+    0.142857142857
+    """
+    return high_power_rate(lam, z0, None, mu)
 
 
 def energy_per_step(

@@ -9,7 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from ..model.schedules import OnlineDesign, offline_schedule, online_high_power_rate
+from ..attacks.rates import online_high_power_rate
+from ..model.schedules import OnlineDesign, offline_schedule
 from ..model.system import LinearSystem
 from ..studies.report import FLAG_SIGMAS, Analysis, Row
 

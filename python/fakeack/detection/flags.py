@@ -10,6 +10,7 @@ import numpy as np
 from .. import _fakeack
 from .._internal.validate import as_int
 from ..attacks.kinds import as_attack, core_attack
+from ..attacks.rates import high_power_rate
 from ..model.schedules import check_online
 from ..model.system import LinearSystem
 
@@ -136,7 +137,8 @@ def flag_rates(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> FlagRate
 def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
     r"""Long-run flag-ACKs reaching the sensor per step under an attack (exact).
 
-    Genuine and forged flags count alike: the sensor cannot tell them apart.
+    Genuine and forged flags count alike: the sensor cannot tell them apart, and each makes it use
+    high power, so this is :func:`fakeack.high_power_rate` under the name of what it counts.
 
     Parameters
     ----------
@@ -149,7 +151,7 @@ def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) ->
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
     """
-    return flag_rates(lam, z0, attack, mu)[1]
+    return high_power_rate(lam, z0, attack, mu)
 
 
 def regime_rates(lam: float, z0: int, mu: float) -> tuple[float, float]:

@@ -11,7 +11,6 @@ from .schedules import (
     j_offline,
     j_online,
     offline_schedule,
-    online_high_power_rate,
 )
 from .system import LinearSystem
 
@@ -21,7 +20,6 @@ __all__ = [
     "offline_schedule",
     "j_offline",
     "j_online",
-    "online_high_power_rate",
     "OnlineDesign",
     "design_online",
     "j_max",

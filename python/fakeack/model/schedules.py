@@ -18,7 +18,6 @@ __all__ = [
     "offline_schedule",
     "j_offline",
     "j_online",
-    "online_high_power_rate",
     "OnlineDesign",
     "design_online",
     "j_max",
@@ -174,36 +173,54 @@ def j_online(system: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
     return core.j_online(lam, z0, mu)
 
 
-def online_high_power_rate(lam: Any, z0: Any, mu: Any = 1.0) -> float:
-    r"""Long-run fraction of steps at high power under :math:`\theta_{\mathrm{on}}` (Model note 2).
-
-    .. math:: \frac{\lambda a^{z_0}(\mu + (1-\mu)a)}{1 - \mu a^{z_0+1} - (1-\mu)a^{z_0+2}}
-
-    Parameters
-    ----------
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
-    z0 : int
-        Memory length of the event detector.
-    mu : float, optional
-        Probability of the z0-bit memory at each step (default 1).
-
-    Examples
-    --------
-    >>> round(online_high_power_rate(0.5, 2), 12)    # 1/7
-    0.142857142857
-    """
-    lam, z0, mu = check_online(lam, z0, mu)
-    return _fakeack.high_power_rate(lam, z0, mu)
-
-
-class OnlineDesign(NamedTuple):
-    """Parameters of the online schedule that spend the energy budget exactly."""
-
+class _Design(NamedTuple):
     z0: int
     """Memory length."""
     mu: float
     """Probability of the z0-bit memory at each step (1.0: fixed length z0)."""
+
+
+class OnlineDesign(_Design):
+    """The ACK-based online schedule :math:`\theta_{\\mathrm{on}}`: a flag-ACK after z0 losses (z0+1 with
+    probability 1-mu).
+
+    One type for the pair (z0, mu) everywhere: :func:`design_online` returns it, the simulation
+    takes it as its schedule, and it unpacks as ``z0, mu = design``. ``fakeack.OnlineSchedule`` is
+    the same class.
+
+    Parameters
+    ----------
+    z0 : int
+        Memory length of the event detector, at least 1.
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1: a fixed memory of z0).
+
+    Examples
+    --------
+    >>> OnlineDesign(2)
+    OnlineDesign(z0=2, mu=1.0)
+    >>> z0, mu = OnlineDesign.design(0.5, "1/7"); (z0, mu)
+    (2, 1.0)
+    >>> str(OnlineDesign(3, 0.25))
+    'online z0=3, mu=0.25'
+    """
+
+    __slots__ = ()
+
+    def __new__(cls, z0: Any, mu: Any = 1.0) -> OnlineDesign:
+        return super().__new__(cls, as_int("z0", z0, minimum=1), as_probability("mu", mu, closed=True))
+
+    @classmethod
+    def design(cls, lam: Any, ratio: Any) -> OnlineDesign:
+        """The schedule that spends the energy ratio exactly (:func:`fakeack.design_online`)."""
+        return design_online(lam, ratio)
+
+    def __str__(self) -> str:
+        return f"online z0={self.z0}" + ("" if self.mu == 1.0 else f", mu={self.mu:.6g}")
+
+
+OnlineSchedule = OnlineDesign
+"""The online schedule as the simulation's schedule: the same class as :class:`OnlineDesign`."""
 
 
 def _rate_exact(lam: Fraction, z0: int, mu: Fraction) -> Fraction:
@@ -354,24 +371,3 @@ class OfflineSchedule:
         pat = self.pattern
         body = "".join(map(str, pat.tolist())) if len(pat) <= 40 else f"{len(pat)} steps"
         return f"offline {self.ratio}: {body}"
-
-
-@dataclass(frozen=True)
-class OnlineSchedule:
-    """The ACK-based online schedule: a flag-ACK after z0 losses (z0+1 with probability 1-mu)."""
-
-    z0: int
-    mu: float = 1.0
-
-    def __init__(self, z0: Any, mu: Any = 1.0):
-        object.__setattr__(self, "z0", as_int("z0", z0, minimum=1))
-        object.__setattr__(self, "mu", as_probability("mu", mu, closed=True))
-
-    @classmethod
-    def design(cls, lam: Any, ratio: Any) -> OnlineSchedule:
-        """The schedule that spends the energy ratio exactly (:func:`fakeack.design_online`)."""
-        z0, mu = design_online(lam, ratio)
-        return cls(z0, mu)
-
-    def __str__(self) -> str:
-        return f"online z0={self.z0}" + ("" if self.mu == 1.0 else f", mu={self.mu:.6g}")
