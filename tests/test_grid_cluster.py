@@ -125,22 +125,22 @@ def test_cli_interrupted_and_killed_then_resumed(tmp_path):
     store = out / "study.zarr"
     n_blocks = len(SLOW["lam"]) * len(SLOW["ratio"])
     # Ctrl-C: exit 130, a consistent store and a hint to resume.
-    proc = cli(out, config)
-    assert stop_part_way(proc, store, signal.SIGINT) == 130
-    assert "--resume" in proc.stderr.read()
+    with cli(out, config) as proc:  # `with` closes the pipes
+        assert stop_part_way(proc, store, signal.SIGINT) == 130
+        assert "--resume" in proc.stderr.read()
     first = np.count_nonzero(records(store))
     assert 0 < first < n_blocks
     # SIGKILL part-way through the resumed run.
-    proc = cli(out, config, "--resume")
-    stop_part_way(proc, store, signal.SIGKILL)
+    with cli(out, config, "--resume") as proc:
+        stop_part_way(proc, store, signal.SIGKILL)
     assert proc.returncode == -signal.SIGKILL
     done = records(store)
     complete = np.count_nonzero(done)
     assert first <= complete < n_blocks
     before = chunk_files(store)
     # The resumed run computes exactly the missing blocks and leaves the others' files alone.
-    proc = cli(out, config, "--resume")
-    stdout, stderr = proc.communicate(timeout=300)
+    with cli(out, config, "--resume") as proc:
+        stdout, stderr = proc.communicate(timeout=300)
     assert proc.returncode == 0, stderr
     assert f"{n_blocks - complete} computed now, {complete} already complete" in stdout
     after = chunk_files(store)
