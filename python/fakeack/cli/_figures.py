@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import io
 import sys
 from pathlib import Path
 from typing import Any
@@ -12,25 +11,11 @@ import numpy as np
 from ..attacks.chain import attack_chain, stationary_distribution
 from ..attacks.kinds import PeriodicBlocking
 from ..attacks.threshold import BetaBar, BetaSweep, j_attack_limit
+from ..plots import save_figure
 from ..studies.report import Analysis
-from ._io import atomic_write
 from ._report import system_text
 
 __all__ = ["write_figures"]
-
-
-def save_figure(fig: Any, outdir: Path, stem: str) -> list[Path]:
-    """Write ``stem.png`` and ``stem.svg`` with no date or software stamp (reproducible bytes)."""
-    import matplotlib
-
-    written = []
-    for ext in ("png", "svg"):
-        buf = io.BytesIO()
-        meta = {"Software": None} if ext == "png" else {"Date": None}
-        with matplotlib.rc_context({"svg.hashsalt": "fakeack"}):
-            fig.savefig(buf, format=ext, dpi=150, metadata=meta)
-        written.append(atomic_write(outdir / f"{stem}.{ext}", buf.getvalue()))
-    return written
 
 
 def _mu_text(analysis: Analysis) -> str:

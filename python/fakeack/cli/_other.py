@@ -13,16 +13,20 @@ from ..attacks.random import beta_bar_random
 from ..attacks.rates import high_power_rate
 from ..model.schedules import OnlineDesign
 from ..model.system import LinearSystem
-from ..plots.families import plot_attack_families
-from ._figures import save_figure
+from ..plots import plot_attack_families, save_figure
 from ._report import format_number
 
 __all__ = ["attack_rows", "family_figure", "reproduce_lines"]
 
 
 def reproduce_lines(
-    system: LinearSystem, lam: float, ratio: Fraction, delta_hi: float, delta_lo: float,
-    beta_bar_limit: float | None, beta_bar_finite: Fraction | None,
+    system: LinearSystem,
+    lam: float,
+    ratio: Fraction,
+    delta_hi: float,
+    delta_lo: float,
+    beta_bar_limit: float | None,
+    beta_bar_finite: Fraction | None,
 ) -> tuple[list[str], dict[str, Any]]:
     """The table of the paper's example under the other attacks (text lines and JSON)."""
     rows, bar_random = other_attacks_table(system, lam, ratio, delta_hi, delta_lo)
@@ -52,8 +56,7 @@ def attack_rows(
     z0, mu = online
     rate0 = high_power_rate(lam, z0, None, mu)
     lines = [
-        "other attacks (exact; high-power rate = share of steps at high power, "
-        f"{rate0:.6f} without attack):",
+        f"other attacks (exact; high-power rate = share of steps at high power, {rate0:.6f} without attack):",
         f"  {'attack':<52} {'J':>10} {'high-power rate':>16}",
     ]
     rows = []
@@ -75,10 +78,6 @@ def family_figure(
 
     if not plots.have_matplotlib():
         return []
-    import matplotlib.pyplot as plt
-
+    # The figure lives on its own Agg canvas, outside pyplot: nothing to close after saving.
     fig = plot_attack_families(attack_families(system, lam, ratio, delta_hi, delta_lo))
-    try:
-        return save_figure(fig, out, "fig_attack_families")
-    finally:
-        plt.close(fig)
+    return save_figure(fig, out, "fig_attack_families")

@@ -15,8 +15,7 @@ from ..config.game import GameConfig, parse_game
 from ..game.frontier import FAMILIES, stealthy_frontier
 from ..game.simulate import simulate_game
 from ..game.solve import solve_game
-from ..plots.frontier import plot_frontiers
-from ._figures import save_figure
+from ..plots import have_matplotlib, plot_frontiers, plot_game, save_figure
 from ._io import atomic_write, to_json
 
 __all__ = ["run"]
@@ -57,19 +56,47 @@ def _checks(cfg: Any, game: GameConfig, sol: Any) -> list[dict]:
         seen.add(key)
         i = sol.policies.index(pol)
         j = sol.attacks.index(att)
-        sim = simulate_game(cfg.system, cfg.lam, cfg.ratio, pol, att, game.horizon, game.runs, game.seed,
-                            n_steps=game.n_steps, burn_in=10 * game.n_steps)
-        out.append({"policy": str(pol), "attack": _name(att), "formula": float(sol.payoff[i, j]),
-                    "monte_carlo": sim.j, "stderr": sim.stderr})
+        sim = simulate_game(
+            cfg.system,
+            cfg.lam,
+            cfg.ratio,
+            pol,
+            att,
+            game.horizon,
+            game.runs,
+            game.seed,
+            n_steps=game.n_steps,
+            burn_in=10 * game.n_steps,
+        )
+        out.append(
+            {
+                "policy": str(pol),
+                "attack": _name(att),
+                "formula": float(sol.payoff[i, j]),
+                "monte_carlo": sim.j,
+                "stderr": sim.stderr,
+            }
+        )
     return out
 
 
 def _frontiers(cfg: Any, game: GameConfig) -> list:
     alpha = min(game.alphas)
     return [
-        stealthy_frontier(cfg.system, cfg.lam, cfg.online.z0, game.n_steps, alpha, test, family,
-                          game.max_detection, t_max=game.t_max, mu=cfg.online.mu)
-        for test in game.tests for family in FAMILIES
+        stealthy_frontier(
+            cfg.system,
+            cfg.lam,
+            cfg.online.z0,
+            game.n_steps,
+            alpha,
+            test,
+            family,
+            game.max_detection,
+            t_max=game.t_max,
+            mu=cfg.online.mu,
+        )
+        for test in game.tests
+        for family in FAMILIES
     ]
 
 
@@ -87,20 +114,29 @@ def _text(cfg: Any, game: GameConfig, sol: Any, frontiers: list, checks: list, f
     ]
     for i, pol in enumerate(sol.policies):
         j = sol.best_attack[i]
-        lines.append(f"  {str(pol):62s} {_name(sol.attacks[j])[:58]:58s} J = {sol.payoff[i, j]:.4f}, "
-                     f"d = {sol.detection[i, j]:.3f}")
-    lines += ["", f"stealthy frontiers (detection per window <= {game.max_detection:g}, "
-              f"alpha = {min(game.alphas):g}):"]
+        lines.append(
+            f"  {str(pol):62s} {_name(sol.attacks[j])[:58]:58s} J = {sol.payoff[i, j]:.4f}, "
+            f"d = {sol.detection[i, j]:.3f}"
+        )
+    lines += [
+        "",
+        f"stealthy frontiers (detection per window <= {game.max_detection:g}, alpha = {min(game.alphas):g}):",
+    ]
     for f in frontiers:
-        what = "none admissible" if f.attack is None else (
-            f"J = {f.j:.6f} at detection {f.detection:.4f}: {_name(f.attack)}")
+        what = (
+            "none admissible"
+            if f.attack is None
+            else (f"J = {f.j:.6f} at detection {f.detection:.4f}: {_name(f.attack)}")
+        )
         lines.append(f"  {f.test:8s} test, {f.family:13s} family: {what}")
     if checks:
         lines += ["", "closed-loop Monte Carlo (fakeack.simulate_game) against the payoff formula:"]
         for c in checks:
             z = (c["monte_carlo"] - c["formula"]) / c["stderr"] if c["stderr"] > 0 else 0.0
-            lines.append(f"  {c['policy']} / {c['attack']}: formula {c['formula']:.6f}, "
-                         f"simulated {c['monte_carlo']:.6f} +- {c['stderr']:.6f} ({z:+.1f} s.e.)")
+            lines.append(
+                f"  {c['policy']} / {c['attack']}: formula {c['formula']:.6f}, "
+                f"simulated {c['monte_carlo']:.6f} +- {c['stderr']:.6f} ({z:+.1f} s.e.)"
+            )
     if figures:
         lines += ["", f"wrote {len(figures)} figure files in {Path(figures[0]).parent}/"]
     return "\n".join(lines)
@@ -111,21 +147,28 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     cfg, game = _config(args)
     attacks = game.attack_objects(cfg.lam, cfg.online.z0, cfg.online.mu)
-    sol = solve_game(cfg.system, cfg.lam, cfg.ratio, game.n_steps, game.alphas, game.fallbacks, attacks,
-                     tests=game.tests, rules=game.rules)
+    sol = solve_game(
+        cfg.system,
+        cfg.lam,
+        cfg.ratio,
+        game.n_steps,
+        game.alphas,
+        game.fallbacks,
+        attacks,
+        tests=game.tests,
+        rules=game.rules,
+    )
     solved = time.perf_counter() - start
     frontiers = _frontiers(cfg, game)
     checks = _checks(cfg, game, sol)
     figures: list[Path] = []
     if args.out and not args.no_figures:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        from ..plots.game import plot_game
-
-        out = Path(args.out)
-        figures += save_figure(plot_frontiers(frontiers, j_offline=sol.j_offline), out, "fig_frontiers")
-        figures += save_figure(plot_game(sol), out, "fig_game_payoff")
+        if have_matplotlib():
+            out = Path(args.out)
+            figures += save_figure(plot_frontiers(frontiers, j_offline=sol.j_offline), out, "fig_frontiers")
+            figures += save_figure(plot_game(sol), out, "fig_game_payoff")
+        else:
+            print("note: figures skipped (pip install 'fakeack[plot]' for matplotlib)", file=sys.stderr)
     document = {
         "command": "game",
         "config": cfg.source,
@@ -141,11 +184,23 @@ def run(args: argparse.Namespace) -> int:
         "detection": sol.detection,
         "sensor_strategy": sol.sensor_strategy,
         "attacker_strategy": sol.attacker_strategy,
-        "stackelberg": {"policy": str(sol.stackelberg.policy), "attack": _name(sol.stackelberg.attack),
-                        "payoff": sol.stackelberg.payoff},
-        "frontiers": [{"test": f.test, "family": f.family, "attack": _name(f.attack), "j": f.j,
-                       "detection": f.detection, "frontier_detection": f.frontier[0],
-                       "frontier_j": f.frontier[1]} for f in frontiers],
+        "stackelberg": {
+            "policy": str(sol.stackelberg.policy),
+            "attack": _name(sol.stackelberg.attack),
+            "payoff": sol.stackelberg.payoff,
+        },
+        "frontiers": [
+            {
+                "test": f.test,
+                "family": f.family,
+                "attack": _name(f.attack),
+                "j": f.j,
+                "detection": f.detection,
+                "frontier_detection": f.frontier[0],
+                "frontier_j": f.frontier[1],
+            }
+            for f in frontiers
+        ],
         "closed_loop": checks,
         "seconds_to_solve": solved,
         "figures": figures,
@@ -157,4 +212,3 @@ def run(args: argparse.Namespace) -> int:
         return 0
     print(_text(cfg, game, sol, frontiers, checks, figures))
     return 0
-

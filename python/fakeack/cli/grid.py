@@ -2,7 +2,7 @@
 
 Writes ``DIR/study.zarr`` block by block (Ctrl-C or a killed run leaves it consistent, and
 ``--resume`` finishes it), then ``DIR/study.nc`` (netCDF) and the heat maps of
-:mod:`fakeack.grid_figures`. ``--workers N`` runs on a ``dask.distributed.LocalCluster`` of N
+:mod:`fakeack.plots.grid`. ``--workers N`` runs on a ``dask.distributed.LocalCluster`` of N
 worker processes, ``--scheduler ADDRESS`` on a running Dask scheduler.
 """
 

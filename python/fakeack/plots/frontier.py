@@ -2,40 +2,59 @@
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from ._figure import given_axes, new_figure
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
 
 __all__ = [
     "plot_frontiers",
 ]
 
 
+def plot_frontiers(frontiers: Any, j_offline: Any = None, ax: Axes | Sequence[Axes] | None = None) -> Figure:
+    """J against the detection probability per window along each stealthy frontier.
 
-def plot_frontiers(frontiers: Any, j_offline: Any = None, ax: Any = None) -> Any:
-    """J against detection probability per window for several frontiers (one line each).
+    One panel per test, one step line per attack family (its Pareto frontier: the largest J
+    reached at each detection probability), a dot at the family's best admissible attack, and
+    dotted lines at the false-alarm level, the detection bound and the unattacked online cost.
 
     Parameters
     ----------
     frontiers : sequence of StealthyFrontier
         From :func:`stealthy_frontier`; one panel per test, one line per family.
     j_offline : float, optional
-        Drawn as a horizontal reference.
-    ax : sequence of matplotlib Axes, optional
-        One per test; a new figure by default.
+        The offline schedule's cost, drawn as a dashed horizontal reference.
+    ax : matplotlib.axes.Axes or sequence of Axes, optional
+        One per test, in the sorted order of the tests' names; a new row of panels sharing the
+        J axis by default.
 
     Returns
     -------
     matplotlib.figure.Figure
-    """
-    import matplotlib.pyplot as plt
+        The figure holding ``ax``.
 
+    Raises
+    ------
+    ValueError
+        If ``ax`` does not hold one Axes per test.
+    """
     tests = sorted({f.test for f in frontiers})
     if ax is None:
-        fig, axes = plt.subplots(1, len(tests), figsize=(6 * len(tests), 4.5), sharey=True, squeeze=False)
-        axes = list(axes[0])
+        fig, grid = new_figure((6 * len(tests), 4.5), 1, len(tests), sharey=True, squeeze=False)
+        axes = list(grid[0])
+        # The figure is ours: its title can speak for every panel.
+        fig.suptitle(
+            "Stealthy frontiers: the largest J an attack family reaches at each detection probability"
+        )
     else:
-        axes = list(np.atleast_1d(ax))
+        axes = given_axes(ax, len(tests), "one per test")
         fig = axes[0].figure
     styles = {"periodic": ("C0", "-"), "random": ("C1", "--"), "random+inject": ("C2", "-.")}
     for a, test in zip(axes, tests, strict=True):
@@ -57,6 +76,4 @@ def plot_frontiers(frontiers: Any, j_offline: Any = None, ax: Any = None) -> Any
         a.set_title(f"{test} test")
         a.legend(fontsize=8, loc="upper left")
     axes[0].set_ylabel("J (long-run mean Tr P)")
-    fig.suptitle("Stealthy frontiers: the largest J an attack family reaches at each detection probability")
-    fig.tight_layout()
     return fig

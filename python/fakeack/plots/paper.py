@@ -1,10 +1,9 @@
 """Figures of the paper's Sec. V and of the attack chain (optional: ``pip install fakeack[plot]``).
 
-matplotlib is imported only when a function here is called. Figures are built with
-:class:`matplotlib.figure.Figure` on an Agg canvas, not with ``pyplot``, so no GUI backend is ever
-selected and no global matplotlib state changes (safe on headless machines and inside notebooks).
-Each function takes its data and an optional :class:`matplotlib.axes.Axes` and returns the
-:class:`~matplotlib.figure.Figure` it drew on; nothing is computed here beyond simple reshaping,
+matplotlib is imported only when a function here is called. Each function follows the rule of
+:mod:`fakeack.plots`: it takes its data and an optional :class:`matplotlib.axes.Axes`, draws on it
+or on a new Figure with an Agg canvas (never ``pyplot``), and returns the
+:class:`~matplotlib.figure.Figure` it drew on. Nothing is computed here beyond simple reshaping,
 so the figures show exactly the numbers the command line prints.
 """
 
@@ -15,6 +14,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+from ._figure import new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -52,15 +53,10 @@ def have_matplotlib() -> bool:
 
 
 def _new_axes(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
-    """The Figure of ``ax``, or a new Figure (no pyplot, no GUI) with one Axes."""
+    """The Figure of ``ax``, or a new Figure (Agg canvas, no pyplot) with one Axes."""
     if ax is not None:
         return ax.figure, ax
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    fig = Figure(figsize=figsize, layout="constrained")
-    FigureCanvasAgg(fig)  # the Agg renderer, attached to this figure only (no global backend switch)
-    return fig, fig.add_subplot()
+    return new_figure(figsize)
 
 
 @dataclass(frozen=True)
