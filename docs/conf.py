@@ -2,7 +2,7 @@
 
 Build: ``python -m sphinx -W --keep-going -b html docs docs/_build/html`` (after
 ``pip install ".[docs]"``). The API page is written here from ``fakeack.__all__`` at every build,
-so a new public name appears on it without editing the docs; ``tests/test_api_docs.py`` checks the
+so a new public name appears on it without editing the docs; ``tests/package/test_api_docs.py`` checks the
 built pages against ``__all__``.
 """
 

@@ -412,7 +412,7 @@ def test_readme_slurm_example_builds_its_job_script(monkeypatch):
         jobqueue = pytest.importorskip("dask_jobqueue")
     finally:
         signal.signal(signal.SIGINT, handler)
-    readme = (Path(__file__).parent.parent / "docs" / "parameter-studies.md").read_text()
+    readme = (Path(__file__).resolve().parents[2] / "docs" / "parameter-studies.md").read_text()
     start = readme.index("from dask_jobqueue import SLURMCluster")
     code = readme[start : readme.index("cluster.scale", start)]
     real = jobqueue.SLURMCluster

@@ -160,7 +160,7 @@ def _regime_reference(s, lam, z0, mu):
 def test_choose_schedule_against_an_independent_regime_mix(paper, mu):
     """The decision compares J_inf(beta), the time-weighted mix of the unattacked and all-blocked
     regimes, with J_off; beta_bar is the root of J_inf = J_off. Everything expected comes from the
-    reference chains and a bisection here (tests/test_attack_model.py checks the same mix built
+    reference chains and a bisection here (tests/attacks/test_attack_model.py checks the same mix built
     from the package's own J_on, J_max and flag rates, which a wrong u would corrupt alike).
 
     Kills: dropping mu from the regime rates (u = a^z0 instead of a^z0 (mu + (1-mu) a)); not

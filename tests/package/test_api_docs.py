@@ -13,7 +13,7 @@ import pytest
 
 import fakeack as fa
 
-HTML = Path(os.environ.get("FAKEACK_DOCS_HTML", Path(__file__).resolve().parents[1] / "docs" / "_build" / "html"))
+HTML = Path(os.environ.get("FAKEACK_DOCS_HTML", Path(__file__).resolve().parents[2] / "docs" / "_build" / "html"))
 
 
 @pytest.fixture(scope="module")

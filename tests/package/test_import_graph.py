@@ -7,7 +7,7 @@ from pathlib import Path
 
 import import_graph as ig
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def write(root: Path, files: dict[str, str]) -> Path:

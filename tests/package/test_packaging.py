@@ -16,7 +16,7 @@ import scipy.signal
 import fakeack as fa
 from fakeack import config
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _cargo_version() -> str:

@@ -15,7 +15,7 @@ import pytest
 import fakeack as fa
 from conftest import PAPER, PAPER_LAM, PAPER_RATIO
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "benches"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benches"))
 
 import numpy_protocol as npp  # noqa: E402
 

@@ -77,7 +77,7 @@ def game_inputs(paper):
 
 @pytest.fixture(scope="module")
 def grid_inputs(paper):
-    # The small study of tests/test_grid.py's command-line test: 3 lam x 2 ratios x 2 budgets.
+    # The small study of tests/studies/test_grid.py's command-line test: 3 lam x 2 ratios x 2 budgets.
     pytest.importorskip("xarray")
     return {"ds": fa.study_grid({"paper": paper}, [0.4, 0.5, 0.6], ["1/7", "1/5"], ["1/5", "2/3"], t_max=30)}
 

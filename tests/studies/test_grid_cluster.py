@@ -12,10 +12,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_grid import BETAS, LAMS, RATIOS, TWO_STATE, assert_same_dataset
 
 import fakeack as fa
 from conftest import PAPER
-from test_grid import BETAS, LAMS, RATIOS, TWO_STATE, assert_same_dataset
 
 distributed = pytest.importorskip("distributed")
 zarr = pytest.importorskip("zarr")
