@@ -45,6 +45,24 @@ impl SlicedThreshold {
     }
 }
 
+/// Resolves the 16-bit slice ties of four lanes (all ones where the extended draw hits): the
+/// 48 lower bits of the exact threshold are compared with 48 bits of the lane's side stream.
+/// It lives with [`SlicedThreshold`] so that both four-lane operation sets share it without
+/// importing the grouped kernel that uses them.
+#[cold]
+#[inline(never)]
+fn resolve_ties4(hit: &mut [u64; 4], tie: &[u64; 4], side: &mut [Xoshiro256pp], rest: u64) {
+    for ((h, &t), s) in hit.iter_mut().zip(tie).zip(side.iter_mut()) {
+        if t != 0 {
+            *h = if (s.next_u64() >> SLICE_BITS) < rest {
+                u64::MAX
+            } else {
+                0
+            };
+        }
+    }
+}
+
 /// Per-kernel constants.
 #[derive(Clone, Copy)]
 pub(super) struct Params<'a> {

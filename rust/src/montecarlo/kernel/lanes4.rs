@@ -1,6 +1,6 @@
 //! Four-lane operations on plain arrays: the portable instantiation of the grouped kernel.
 
-use super::grouped::resolve_ties4;
+use super::resolve_ties4;
 use super::Proto;
 use crate::montecarlo::{SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
 use crate::rng::Xoshiro256pp;

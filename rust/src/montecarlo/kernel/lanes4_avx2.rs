@@ -8,7 +8,7 @@
 
 use std::arch::x86_64::*;
 
-use super::grouped::resolve_ties4;
+use super::resolve_ties4;
 use super::Proto;
 use crate::montecarlo::{SLICES_PER_WORD, SLICE_MASK};
 use crate::rng::Xoshiro256pp;
