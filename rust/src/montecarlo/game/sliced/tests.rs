@@ -10,7 +10,7 @@
 use std::collections::VecDeque;
 
 use super::*;
-use crate::montecarlo::bitslice::words::{from_lanes, lane};
+use crate::montecarlo::bitslice::words::{from_lanes, lane, ONES, ZERO};
 use crate::montecarlo::game::GameConfig;
 use crate::online::OnlineDesign;
 use crate::system::LinearSystem;
