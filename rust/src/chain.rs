@@ -5,7 +5,7 @@
 
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::online::{check_lam, one_minus_apow, OnlineDesign};
+use crate::schedule::{check_lam, one_minus_apow, OnlineDesign};
 
 /// Largest chain [`AttackChain::build_csr`] will materialise (about 0.5 GB as CSR).
 pub const MAX_BUILD_STATES: u128 = 20_000_000;

@@ -8,7 +8,7 @@ use std::collections::HashMap;
 use crate::attack::Attack;
 use crate::chain::Csr;
 use crate::error::{Error, Result};
-use crate::online::{check_lam, OnlineDesign};
+use crate::schedule::{check_lam, OnlineDesign};
 
 /// Largest chain [`general_attack_chain`] explores (hashing makes it slower per state than the (τ, σ) chain).
 pub const MAX_GENERAL_STATES: u128 = 5_000_000;

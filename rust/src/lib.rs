@@ -53,19 +53,17 @@ pub mod analysis;
 pub mod attack;
 pub mod chain;
 pub mod error;
-pub mod exact_design;
 pub mod general;
 pub mod grid;
 mod linalg;
 pub mod montecarlo;
-pub mod online;
 pub mod pattern;
 #[cfg(test)]
 mod properties;
 pub mod random;
 pub mod riccati;
 pub mod rng;
-pub mod schedules;
+pub mod schedule;
 pub mod spectral;
 pub mod stationary;
 pub mod stein;
@@ -80,7 +78,11 @@ pub use analysis::{flag_rates, BetaBar, Decision, FlagRates, MaskSearch, Schedul
 pub use attack::Attack;
 pub use error::{Error, Result};
 pub use montecarlo::{McConfig, McResult, McSchedule, Mode, Protocol};
-pub use online::{design_online, OnlineDesign};
-pub use schedules::Ratio;
+pub use schedule::{design_online, OnlineDesign, Ratio};
 pub use sweep::Sweep;
 pub use system::LinearSystem;
+
+// The former top-level modules, now files of the groups above: their old paths still resolve.
+pub use schedule as online;
+pub use schedule as schedules;
+pub use schedule::exact_design;

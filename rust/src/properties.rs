@@ -8,9 +8,9 @@ use proptest::test_runner::RngSeed;
 use crate::attack::{longest_cyclic_run, Attack};
 use crate::chain::AttackChain;
 use crate::general;
-use crate::online::OnlineDesign;
 use crate::pattern::Segments;
-use crate::schedules::{j_max, j_online};
+use crate::schedule::OnlineDesign;
+use crate::schedule::{j_max, j_online};
 use crate::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
 use crate::system::LinearSystem;
 

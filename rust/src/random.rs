@@ -28,7 +28,7 @@
 //! the asymptotic one: the bound on a geometric tail, so J is exact to about 1e-16 relative.
 
 use crate::error::{Error, Result};
-use crate::online::{OnlineDesign, Walk};
+use crate::schedule::{OnlineDesign, Walk};
 use crate::system::LinearSystem;
 
 /// Relative size of the neglected tail of each sum.

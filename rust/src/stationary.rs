@@ -15,8 +15,8 @@ use std::collections::BTreeMap;
 
 use crate::chain::{AttackChain, Csr};
 use crate::error::{Error, Result};
-use crate::online::{apow, OnlineDesign};
 use crate::pattern::{tau_needed, Segments};
+use crate::schedule::{apow, OnlineDesign};
 
 /// Largest stationary vector [`structured`] will allocate (0.8 GB of f64).
 pub const MAX_VECTOR_STATES: u128 = 100_000_000;

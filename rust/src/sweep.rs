@@ -246,7 +246,7 @@ mod tests {
         let w: Vec<f64> = (0..400)
             .map(|i| 0.5f64.powi(i) * (1.0 + 1.44f64.powi(i)))
             .collect();
-        let design = crate::online::OnlineDesign::fixed(2).unwrap();
+        let design = crate::schedule::OnlineDesign::fixed(2).unwrap();
         let seg = Segments::new(&w, lam, design, 60).unwrap();
         let s = sweep(&seg, 61).unwrap();
         for i in 0..s.r.len() {
@@ -268,7 +268,7 @@ mod tests {
     #[test]
     fn sweep_limits() {
         let w: Vec<f64> = (0..40).map(|i| 0.5f64.powi(i)).collect();
-        let design = crate::online::OnlineDesign::fixed(2).unwrap();
+        let design = crate::schedule::OnlineDesign::fixed(2).unwrap();
         let seg = Segments::new(&w, 0.5, design, 2).unwrap();
         assert_eq!(sweep(&seg, 2).unwrap().r, vec![1]);
         assert!(first_crossing(&seg, 2, 0.0).unwrap().is_some());
@@ -289,7 +289,7 @@ mod tests {
             .map(|i| 0.5f64.powi(i) * (1.0 + 1.44f64.powi(i)))
             .collect();
         for mu in [1.0, 0.4] {
-            let design = crate::online::OnlineDesign::new(2, mu).unwrap();
+            let design = crate::schedule::OnlineDesign::new(2, mu).unwrap();
             let seg = Segments::new(&w, lam, design, 40).unwrap();
             let s = sweep(&seg, 41).unwrap();
             let build = |k| Segments::new(&w, lam, design, k);
@@ -308,7 +308,7 @@ mod tests {
             }
         }
         assert!(first_crossing_by_depth(
-            |k| Segments::new(&w, lam, crate::online::OnlineDesign::fixed(2).unwrap(), k),
+            |k| Segments::new(&w, lam, crate::schedule::OnlineDesign::fixed(2).unwrap(), k),
             1,
             1.0,
             4

@@ -2,10 +2,10 @@
 
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::online::{OnlineDesign, Walk};
 use crate::pattern::Segments;
 use crate::random::{self, ScaledTraces};
-use crate::schedules::Ratio;
+use crate::schedule::Ratio;
+use crate::schedule::{OnlineDesign, Walk};
 use crate::system::LinearSystem;
 use rayon::prelude::*;
 

@@ -1,7 +1,7 @@
 //! The crate's front door: every quantity of the analysis as a method of [`LinearSystem`].
 //!
 //! A system and the channel's λ give P̄ and the costs J of both schedules; an online design
-//! ([`OnlineDesign`], from [`design_online`](crate::online::design_online) or given) and an
+//! ([`OnlineDesign`], from [`design_online`](crate::schedule::design_online) or given) and an
 //! [`Attack`] give the attacked cost, the β sweep, both thresholds β̄ and the sensor's decision;
 //! a [`Schedule`] gives exact finite-horizon curves and the Monte Carlo of the protocol.
 //!
@@ -31,9 +31,9 @@ use crate::chain::AttackChain;
 use crate::error::{Error, Result};
 use crate::general::capped_attack_chain;
 use crate::montecarlo::{self, McConfig, McResult, McSchedule};
-use crate::online::{check_lam, OnlineDesign};
 use crate::pattern::{self, tau_needed, Segments};
-use crate::schedules::{self, offline_schedule, Ratio};
+use crate::schedule::{self, offline_schedule, Ratio};
+use crate::schedule::{check_lam, OnlineDesign};
 use crate::sweep::{self, Sweep};
 use crate::system::LinearSystem;
 use crate::transient;
@@ -115,7 +115,7 @@ impl LinearSystem {
         check_lam(lam)?;
         let s0 = ratio.offline_blocks().s0;
         let w = self.checked_weighted_traces(1.0 - lam, s0 as u128 + 1, "ratio")?;
-        schedules::j_offline(&w, lam, ratio)
+        schedule::j_offline(&w, lam, ratio)
     }
 
     /// J of the online schedule without attack (Theorem 4.5 of Han et al., Model note 2).
@@ -123,13 +123,13 @@ impl LinearSystem {
         check_lam(lam)?;
         design.validate()?;
         let w = self.checked_weighted_traces(1.0 - lam, design.z0 as u128 + 1, "z0")?;
-        schedules::j_online(&w, lam, design)
+        schedule::j_online(&w, lam, design)
     }
 
     /// J with every flag-ACK blocked: Σ_i λ a^i Tr h^i(P̄), by a Stein equation; `inf` when
     /// (1-λ) ρ(A)² >= 1 (Model note 5).
     pub fn j_max(&self, lam: f64) -> Result<f64> {
-        schedules::j_max(self, lam)
+        schedule::j_max(self, lam)
     }
 
     /// Segments of the memory walk deep enough for `kmax` blocked flags in a row.

@@ -3,9 +3,9 @@
 
 use crate::attack::Attack;
 use crate::error::Result;
-use crate::online::{OnlineDesign, Walk};
 use crate::pattern::Segments;
 use crate::random;
+use crate::schedule::{OnlineDesign, Walk};
 
 /// Flag-ACKs per step in the long run.
 #[derive(Debug, Clone, Copy, PartialEq)]

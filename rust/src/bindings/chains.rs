@@ -15,7 +15,7 @@ pub(crate) fn offline_schedule<'py>(
     p: u64,
     q: u64,
 ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-    let s = crate::schedules::offline_schedule(Ratio::new(p, q)?)?;
+    let s = crate::schedule::offline_schedule(Ratio::new(p, q)?)?;
     Ok(s.into_iter()
         .map(i64::from)
         .collect::<Vec<_>>()

@@ -11,7 +11,7 @@ use super::simulate::run_interruptible;
 use super::system::PySystem;
 use super::{attack_of, design, PyAttack};
 use crate::montecarlo::game::{Detector, GameConfig, Policy};
-use crate::schedules::{offline_schedule, Ratio};
+use crate::schedule::{offline_schedule, Ratio};
 
 /// The policy named `kind`: "online" (never tested), "offline", "count" (alarm iff N <= lo or
 /// N >= hi) or "interval" (alarm iff Pearson's X² over `edges`/`expected` exceeds `critical`).

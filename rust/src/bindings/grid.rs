@@ -8,8 +8,8 @@ use pyo3::types::PyDict;
 
 use super::system::PySystem;
 use super::PyAttack;
-use crate::exact_design::{design_exact, Lam};
 use crate::grid::{self, Cell, CellResult, Family, Study};
+use crate::schedule::exact_design::{design_exact, Lam};
 use crate::{LinearSystem, OnlineDesign, Ratio};
 
 fn family_of(name: &str) -> PyResult<Family> {
@@ -132,7 +132,7 @@ pub(crate) fn grid_cells<'py>(
 /// The memories and mixes of [`grid_designs`].
 type Designs<'py> = (Bound<'py, PyArray1<u64>>, Bound<'py, PyArray1<f64>>);
 
-/// The exact online design of each (λ, p/q) ([`crate::exact_design::design_exact`]), in
+/// The exact online design of each (λ, p/q) ([`crate::schedule::exact_design::design_exact`]), in
 /// parallel with the GIL released. λ is read as the fraction `lam_num / lam_den` (or, where
 /// `lam_den` is 0, as the float's exact binary value), as the Python package reads it. Returns
 /// `(z0, mu)` arrays, `z0 == 0` where the Python package's exact path must decide.

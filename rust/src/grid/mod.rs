@@ -42,9 +42,9 @@ use rayon::prelude::*;
 
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::online::{OnlineDesign, Walk};
 use crate::pattern::{self, tau_needed, Segments, MAX_SEGMENTS_MIXED};
-use crate::schedules::{self, Ratio};
+use crate::schedule::{self, Ratio};
+use crate::schedule::{OnlineDesign, Walk};
 use crate::sweep;
 use crate::system::LinearSystem;
 
@@ -292,13 +292,13 @@ fn shared_cell(sys: &LinearSystem, cell: &Cell, study: &Study, sh: &Shared) -> R
     let (lam, ratio) = (cell.lam, cell.ratio);
     let mut out = CellResult::empty(study);
     let s0 = ratio.offline_blocks().s0 as usize;
-    out.j_offline = schedules::j_offline(&sh.w_cost[..s0 + 2], lam, ratio)?;
+    out.j_offline = schedule::j_offline(&sh.w_cost[..s0 + 2], lam, ratio)?;
     out.j_max = sh.j_max;
     let Some(design) = cell.design else {
         return Ok(out);
     };
     let z0 = design.z0 as usize;
-    out.j_online = schedules::j_online(&sh.w_cost[..z0 + 2], lam, design)?;
+    out.j_online = schedule::j_online(&sh.w_cost[..z0 + 2], lam, design)?;
     // LinearSystem::beta_bar: segments 0..t_max-1 of the walk.
     let walk = Walk::new(lam, design, 0.0)?;
     let build = |k| Segments::of_walk_with_masses(sh.walk_traces(), &sh.masses, &walk, k);

@@ -55,8 +55,8 @@ use super::bitslice::RUNS;
 use super::cpu::Avx2;
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::online::{check_lam, OnlineDesign};
 use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
+use crate::schedule::{check_lam, OnlineDesign};
 use crate::system::LinearSystem;
 
 /// Runs simulated in lock-step by one kernel call.

@@ -3,7 +3,7 @@
 
 use super::plan::Plan;
 use super::*;
-use crate::schedules::{offline_schedule, Ratio};
+use crate::schedule::{offline_schedule, Ratio};
 
 fn paper() -> LinearSystem {
     LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap()
