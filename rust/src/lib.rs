@@ -55,18 +55,13 @@ pub mod chain;
 pub mod error;
 pub mod general;
 pub mod grid;
-mod linalg;
 pub mod montecarlo;
 pub mod pattern;
 #[cfg(test)]
 mod properties;
 pub mod random;
-pub mod riccati;
-pub mod rng;
 pub mod schedule;
-pub mod spectral;
 pub mod stationary;
-pub mod stein;
 pub mod sweep;
 pub mod system;
 pub mod transient;
@@ -83,6 +78,8 @@ pub use sweep::Sweep;
 pub use system::LinearSystem;
 
 // The former top-level modules, now files of the groups above: their old paths still resolve.
+pub use montecarlo::rng;
 pub use schedule as online;
 pub use schedule as schedules;
 pub use schedule::exact_design;
+pub use system::{riccati, spectral, stein};

@@ -11,7 +11,7 @@ use super::{KernelFlags, MAX_HORIZON, MAX_RECORDED_RUNS};
 use crate::attack::{longest_cyclic_run, Attack};
 use crate::error::{Error, Result};
 use crate::general::capped_attack_chain;
-use crate::rng::bernoulli_threshold;
+use crate::montecarlo::rng::bernoulli_threshold;
 use crate::schedule::{check_lam, OnlineDesign};
 use crate::stationary::gth;
 use crate::system::LinearSystem;

@@ -55,7 +55,7 @@ use super::bitslice::RUNS;
 use super::cpu::Avx2;
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
+use crate::montecarlo::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
 use crate::schedule::{check_lam, OnlineDesign};
 use crate::system::LinearSystem;
 

@@ -4,7 +4,7 @@
 
 use super::{lanes4, Isa, Lanes, Params, Proto, LANES};
 use crate::error::{Error, Result};
-use crate::rng::Xoshiro256pp;
+use crate::montecarlo::rng::Xoshiro256pp;
 
 /// Steps per sub-chunk of the grouped kernels: each group of 4 lanes runs this many steps with
 /// its state in registers and writes its masked per-step values to a buffer (16 KiB), which is

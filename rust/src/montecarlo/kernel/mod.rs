@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use super::cpu::Avx2;
 use super::{CHUNK_STEPS, LANES, SLICE_BITS};
 use crate::error::{Error, Result};
-use crate::rng::Xoshiro256pp;
+use crate::montecarlo::rng::Xoshiro256pp;
 
 mod grouped;
 mod lanes4;
@@ -35,7 +35,7 @@ pub(super) struct SlicedThreshold {
 }
 
 impl SlicedThreshold {
-    /// Cuts the threshold `thr` (see [`crate::rng::bernoulli_threshold`]).
+    /// Cuts the threshold `thr` (see [`crate::montecarlo::rng::bernoulli_threshold`]).
     pub(super) fn new(thr: u64) -> Self {
         let low = 64 - SLICE_BITS;
         SlicedThreshold {

@@ -40,7 +40,7 @@ use crate::attack::Attack;
 use crate::error::Result;
 use crate::montecarlo::bitslice::mask_runs;
 use crate::montecarlo::bitslice::words::{Portable, Rng4, StreamStepper, RUNS, W};
-use crate::rng::bernoulli_threshold;
+use crate::montecarlo::rng::bernoulli_threshold;
 
 mod body;
 

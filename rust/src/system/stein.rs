@@ -8,7 +8,7 @@
 use nalgebra::DMatrix;
 
 use crate::error::{Error, Result};
-use crate::linalg::frobenius_norm;
+use crate::system::linalg::frobenius_norm;
 
 /// Most doubling steps; step k adds 2^k terms of the series, so 200 is never reached when the
 /// series converges.
