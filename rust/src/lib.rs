@@ -53,18 +53,13 @@ pub mod analysis;
 pub mod attack;
 pub mod chain;
 pub mod error;
-pub mod general;
 pub mod grid;
 pub mod montecarlo;
-pub mod pattern;
 #[cfg(test)]
 mod properties;
-pub mod random;
+pub mod renewal;
 pub mod schedule;
-pub mod stationary;
-pub mod sweep;
 pub mod system;
-pub mod transient;
 
 #[cfg(feature = "python")]
 mod bindings;
@@ -73,12 +68,14 @@ pub use analysis::{flag_rates, BetaBar, Decision, FlagRates, MaskSearch, Schedul
 pub use attack::Attack;
 pub use error::{Error, Result};
 pub use montecarlo::{McConfig, McResult, McSchedule, Mode, Protocol};
+pub use renewal::sweep::Sweep;
 pub use schedule::{design_online, OnlineDesign, Ratio};
-pub use sweep::Sweep;
 pub use system::LinearSystem;
 
 // The former top-level modules, now files of the groups above: their old paths still resolve.
+pub use chain::{general, stationary, transient};
 pub use montecarlo::rng;
+pub use renewal::{independent as random, periodic as pattern, sweep};
 pub use schedule as online;
 pub use schedule as schedules;
 pub use schedule::exact_design;

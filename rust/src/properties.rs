@@ -6,12 +6,12 @@ use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
 
 use crate::attack::{longest_cyclic_run, Attack};
+use crate::chain::general;
+use crate::chain::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
 use crate::chain::AttackChain;
-use crate::general;
-use crate::pattern::Segments;
+use crate::renewal::periodic::Segments;
 use crate::schedule::OnlineDesign;
 use crate::schedule::{j_max, j_online};
-use crate::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
 use crate::system::LinearSystem;
 
 fn system(n: usize, m: usize, entries: &[f64], scale: f64) -> Option<LinearSystem> {
@@ -135,7 +135,7 @@ proptest! {
         prop_assume!(!bits.iter().all(|&b| b));
         let kmax = longest_cyclic_run(&bits) as u64;
         let tr = |i: usize| 1.0 + 0.3 * i as f64 + 1.1f64.powi(i as i32);
-        let need = crate::pattern::tau_needed(z0, kmax) as usize;
+        let need = crate::renewal::periodic::tau_needed(z0, kmax) as usize;
         let w: Vec<f64> = (0..=need).map(|i| a_pow(lam, i) * tr(i)).collect();
         let design = OnlineDesign::new(z0, mu).unwrap();
         let seg = Segments::new(&w, lam, design, kmax).unwrap();

@@ -22,21 +22,20 @@
 use std::sync::atomic::{AtomicBool, AtomicU64};
 
 mod attacks;
-mod rates;
 
-pub use rates::{flag_rates, FlagRates};
+pub use crate::renewal::rates::{flag_rates, FlagRates};
 
 use crate::attack::Attack;
+use crate::chain::general::capped_attack_chain;
+use crate::chain::transient;
 use crate::chain::AttackChain;
 use crate::error::{Error, Result};
-use crate::general::capped_attack_chain;
 use crate::montecarlo::{self, McConfig, McResult, McSchedule};
-use crate::pattern::{self, tau_needed, Segments};
+use crate::renewal::periodic::{self, tau_needed, Segments};
+use crate::renewal::sweep::{self, Sweep};
 use crate::schedule::{self, offline_schedule, Ratio};
 use crate::schedule::{check_lam, OnlineDesign};
-use crate::sweep::{self, Sweep};
 use crate::system::LinearSystem;
-use crate::transient;
 
 /// The sensor's power schedule.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -141,7 +140,7 @@ impl LinearSystem {
     /// can do with the consecutive pattern.
     pub fn j_attack_limit(&self, lam: f64, design: OnlineDesign, beta: f64) -> Result<f64> {
         let seg = self.segments(lam, design, 0)?;
-        pattern::j_limit(&seg, lam, self.j_max(lam)?, beta)
+        periodic::j_limit(&seg, lam, self.j_max(lam)?, beta)
     }
 
     /// J at every β = r/t in lowest terms with 1 <= r < t <= t_max, in increasing β (a Farey
@@ -165,7 +164,7 @@ impl LinearSystem {
         let j_max = self.j_max(lam)?;
         Ok(BetaBar {
             finite: sweep::first_crossing(&seg, t_max, j_offline)?,
-            limit: pattern::beta_limit_threshold(&seg, lam, j_max, j_offline),
+            limit: periodic::beta_limit_threshold(&seg, lam, j_max, j_offline),
             j_offline,
             j_online: self.j_online(lam, design)?,
             j_max,
@@ -184,10 +183,10 @@ impl LinearSystem {
         let j_offline = self.j_offline(lam, ratio)?;
         let seg = self.segments(lam, design, 0)?;
         let j_max = self.j_max(lam)?;
-        let j_online_attacked = pattern::j_limit(&seg, lam, j_max, beta)?;
+        let j_online_attacked = periodic::j_limit(&seg, lam, j_max, beta)?;
         Ok(Decision {
             online: j_online_attacked < j_offline,
-            beta_bar: pattern::beta_limit_threshold(&seg, lam, j_max, j_offline),
+            beta_bar: periodic::beta_limit_threshold(&seg, lam, j_max, j_offline),
             j_online_attacked,
             j_offline,
             j_online: self.j_online(lam, design)?,
@@ -204,7 +203,7 @@ impl LinearSystem {
         blocked: usize,
     ) -> Result<MaskSearch> {
         let seg = self.segments(lam, design, t.saturating_sub(1) as u64)?;
-        let (mask, j, j_consecutive) = pattern::worst_mask(&seg, t, blocked)?;
+        let (mask, j, j_consecutive) = periodic::worst_mask(&seg, t, blocked)?;
         Ok(MaskSearch {
             mask,
             j,
@@ -294,7 +293,7 @@ pub fn traces_needed(design: OnlineDesign, attack: &Attack) -> u128 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stationary;
+    use crate::chain::stationary;
 
     fn paper() -> LinearSystem {
         LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap()

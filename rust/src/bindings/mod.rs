@@ -150,7 +150,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MAX_BUILD_STATES", crate::chain::MAX_BUILD_STATES as u64)?;
     m.add(
         "MAX_VECTOR_STATES",
-        crate::stationary::MAX_VECTOR_STATES as u64,
+        crate::chain::stationary::MAX_VECTOR_STATES as u64,
     )?;
     m.add("DEFAULT_TOL", crate::system::DEFAULT_TOL)?;
     m.add("DEFAULT_MAX_ITER", crate::system::DEFAULT_MAX_ITER)?;

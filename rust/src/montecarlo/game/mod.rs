@@ -19,7 +19,7 @@
 //! had reset the memory, so a loss makes z = 1), its flag (at z = z0 with probability μ, always
 //! at z0 + 1), the attacker's block (its counter's mask entry, or probability β) and forgery
 //! (probability γ on a step without a genuine flag). These are the rules of
-//! [`crate::general::capped_attack_chain`], which the tests compare with.
+//! [`crate::chain::general::capped_attack_chain`], which the tests compare with.
 //!
 //! # Engineering
 //! Two kernels, with the same protocol and different random streams (so one seed gives equally

@@ -118,7 +118,7 @@ pub fn chain(csr: &Csr, states_tau: &[u64], tr: &[f64], horizon: usize) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::general;
+    use crate::chain::general;
 
     #[test]
     fn online_curve_converges_to_stationary() {

@@ -1,13 +1,13 @@
 //! The β sweep over every r/t in lowest terms, and the attacker threshold β̄.
 //!
 //! "Block the first r of every t" is a renewal cycle, so J(r, t) = (t W_0 + a_r) / (t M_0 + b_r)
-//! with a_r, b_r accumulated once per r ([`crate::pattern::Segments::first_r_offsets`]). The
+//! with a_r, b_r accumulated once per r ([`crate::renewal::periodic::Segments::first_r_offsets`]). The
 //! fractions come from the Farey sequence of order t_max, already sorted by β, at O(1) each.
 
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::pattern::Segments;
+use crate::renewal::periodic::Segments;
 
 /// Most fractions one sweep will hold (4 arrays, 24 bytes per fraction).
 pub const MAX_FRACTIONS: u128 = 400_000_000;
@@ -89,7 +89,7 @@ impl FirstR {
     #[inline]
     fn j(&self, r: u32, t: u32) -> f64 {
         let (a, b) = (self.a[r as usize], self.b[r as usize]);
-        crate::pattern::first_r_j(t as f64, self.w0, a, self.m0, b)
+        crate::renewal::periodic::first_r_j(t as f64, self.w0, a, self.m0, b)
     }
 }
 
