@@ -5,6 +5,11 @@
 //! [`Attack`] give the attacked cost, the β sweep, both thresholds β̄ and the sensor's decision;
 //! a [`Schedule`] gives exact finite-horizon curves and the Monte Carlo of the protocol.
 //!
+//! `impl LinearSystem` is split by method family: the model's own methods (construction, P̄, the
+//! traces, the Stein solve) are in [`crate::system`]; every quantity computed from them is here,
+//! one file per family: costs, thresholds, decisions and curves in this file, the attacked costs
+//! in `attacks`, the Monte Carlo entries (protocol and game) in `simulate`.
+//!
 //! ```
 //! use fakeack::{Attack, LinearSystem, OnlineDesign, Ratio};
 //!
@@ -19,9 +24,8 @@
 //! # Ok::<(), fakeack::Error>(())
 //! ```
 
-use std::sync::atomic::{AtomicBool, AtomicU64};
-
 mod attacks;
+mod simulate;
 
 pub use crate::renewal::rates::{flag_rates, FlagRates};
 
@@ -30,7 +34,7 @@ use crate::chain::general::capped_attack_chain;
 use crate::chain::transient;
 use crate::chain::AttackChain;
 use crate::error::{Error, Result};
-use crate::montecarlo::{self, McConfig, McResult, McSchedule};
+use crate::montecarlo::McSchedule;
 use crate::renewal::periodic::{self, tau_needed, Segments};
 use crate::renewal::sweep::{self, Sweep};
 use crate::schedule::{self, offline_schedule, Ratio};
@@ -102,12 +106,6 @@ pub struct MaskSearch {
 }
 
 impl LinearSystem {
-    /// A scalar system x' = a x + w, y = c x + v with noise variances q and r (1×1 matrices).
-    pub fn scalar(a: f64, c: f64, q: f64, r: f64) -> Result<Self> {
-        let m = |x: f64| nalgebra::DMatrix::from_element(1, 1, x);
-        LinearSystem::new(m(a), m(c), m(q), m(r))
-    }
-
     /// J of the optimal offline schedule for energy ratio p/q (Theorem 3.1's proposition, with
     /// the block counts of Model note 1).
     pub fn j_offline(&self, lam: f64, ratio: Ratio) -> Result<f64> {
@@ -243,26 +241,6 @@ impl LinearSystem {
                 transient::chain(&csr, &taus, &tr, horizon)
             }
         }
-    }
-
-    /// Monte Carlo of the real protocol (see [`crate::montecarlo`]); results depend on the seed
-    /// only. Runs to the end: use [`LinearSystem::simulate_with`] to cancel or watch progress.
-    pub fn simulate(&self, cfg: &McConfig) -> Result<McResult> {
-        self.simulate_with(cfg, &AtomicBool::new(false), &AtomicU64::new(0))
-    }
-
-    /// [`LinearSystem::simulate`] that stops with [`Error::Interrupted`] soon after `cancel` is
-    /// set and adds finished runs to `progress`.
-    pub fn simulate_with(
-        &self,
-        cfg: &McConfig,
-        cancel: &AtomicBool,
-        progress: &AtomicU64,
-    ) -> Result<McResult> {
-        if matches!(cfg.schedule, McSchedule::Offline { .. }) && cfg.attack.is_some() {
-            return Err(offline_takes_no_attack());
-        }
-        montecarlo::simulate(self, cfg, cancel, progress)
     }
 }
 

@@ -8,6 +8,9 @@
 //! The closed-form solvers the model is built on live here with it, since nothing else needs
 //! them: [`riccati`] (P̄ by structured doubling), [`stein`] (the Stein equation behind J_max) and
 //! [`spectral`] (ρ(A) and the detectability test).
+//!
+//! Only the model's own methods of [`LinearSystem`] are here; the quantities of the analysis are
+//! its methods in [`crate::analysis`].
 
 use nalgebra::DMatrix;
 
@@ -171,6 +174,12 @@ impl LinearSystem {
             iterations: steady.iterations,
             spectral_radius,
         })
+    }
+
+    /// A scalar system x' = a x + w, y = c x + v with noise variances q and r (1×1 matrices).
+    pub fn scalar(a: f64, c: f64, q: f64, r: f64) -> Result<Self> {
+        let m = |x: f64| DMatrix::from_element(1, 1, x);
+        LinearSystem::new(m(a), m(c), m(q), m(r))
     }
 
     /// Relative residual ||g̃(h(X)) - X||_F / ||X||_F of the fixed-point equation of P̄
