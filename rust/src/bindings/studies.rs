@@ -1,4 +1,5 @@
-//! Parameter studies: one block of cells of `fakeack.study_grid` ([`crate::grid`]).
+//! For `fakeack.study` and `fakeack.grid` (the studies): one block of cells of
+//! `fakeack.study_grid` ([`crate::grid`]), and the exact online designs of the cells.
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
@@ -6,8 +7,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::system::PySystem;
-use super::PyAttack;
+use super::attacks::PyAttack;
+use super::model::PySystem;
 use crate::grid::{self, Cell, CellResult, Family, Study};
 use crate::schedule::exact_design::{design_exact, Lam};
 use crate::{LinearSystem, OnlineDesign, Ratio};
