@@ -36,7 +36,25 @@
 //! ```
 //!
 //! `examples/paper.rs` (`cargo run --release --example paper`) prints every number of the
-//! paper's example. The modules below are the building blocks, one concept each.
+//! paper's example.
+//!
+//! # Layout
+//! The modules follow the independent routes the crate computes each cost by, so that one route
+//! can check another:
+//! * [`system`]: the model and its closed forms (P̄ by [`riccati`], [`stein`], [`spectral`]);
+//! * [`schedule`]: the schedules without attack (offline, online) and the parameters they share;
+//! * [`chain`]: explicit chains (the paper's attack chain, the general chain, their stationary
+//!   solvers and exact transient curves);
+//! * [`renewal`]: renewal forms of the attacked cost (periodic masks, independent blocking, the
+//!   β sweep, flag-ACK rates);
+//! * [`montecarlo`]: simulation of the real protocol and of the closed-loop game, with its own
+//!   random number generator ([`rng`]);
+//! * [`grid`]: parameter studies over many cells; [`analysis`]: the methods of [`LinearSystem`]
+//!   that tie the routes together; [`attack`] and [`error`]: what all of them share;
+//! * [`engine`]: reserved for a general exact engine.
+//!
+//! The paths of the former flat layout (`fakeack::riccati`, `fakeack::pattern`,
+//! `fakeack::online`, ...) are re-exported here and still resolve.
 //!
 //! # Notation
 //! Following the paper: `a = 1 - lam`, `tr_i = Tr h^i(P̄)`, `w_i = a^i tr_i` (the *weighted*
@@ -52,6 +70,7 @@
 pub mod analysis;
 pub mod attack;
 pub mod chain;
+pub mod engine;
 pub mod error;
 pub mod grid;
 pub mod montecarlo;
