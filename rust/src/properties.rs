@@ -46,8 +46,8 @@ fn system(n: usize, m: usize, entries: &[f64], scale: f64) -> Option<LinearSyste
 /// φ ~ 1e-9 in 100 000 draws; the correctly rounded exact P̄ of one of them (computed in 60-digit
 /// arithmetic) evaluates to 9.7e-11, a hair under the former bound of 1e-10, and φ grows without
 /// limit as C's view of that direction shrinks, so a fixed bound fails for some draw whatever the
-/// solver. Before the solver's defect correction ([`crate::system::riccati::steady_state`]) residuals
-/// reached 1e4 φ (2.2e-7) on these draws, and this bound catches that.
+/// solver. Before the solver's defect correction ([`crate::system::riccati::steady_state`])
+/// residuals reached 1e4 φ (2.2e-7) on these draws, and this bound catches that.
 fn residual_floor(sys: &LinearSystem) -> f64 {
     let (a, c, q, r, pbar) = (sys.a(), sys.c(), sys.q(), sys.r(), sys.pbar());
     let n = sys.n();

@@ -11,10 +11,11 @@ use rayon::prelude::*;
 
 impl LinearSystem {
     /// Stationary J under an attack: the paper's eq. (13)-(14) for "first r of t", the renewal
-    /// form of [`crate::renewal::periodic`] for any mask and any μ, and [`crate::renewal::independent`] for independent
-    /// blocking; forged flags enter both through the memory walk ([`Walk`]). A periodic attack
-    /// that blocks every flag-ACK and forges none is refused: its cost is
-    /// [`LinearSystem::j_max`] (independent blocking with β = 1 gives that J_max).
+    /// form of [`periodic`](crate::renewal::periodic) for any mask and any μ, and
+    /// [`independent`] for independent blocking; forged flags enter
+    /// both through the memory walk ([`Walk`]). A periodic attack that blocks every flag-ACK and
+    /// forges none is refused: its cost is [`LinearSystem::j_max`] (independent blocking with
+    /// β = 1 gives that J_max).
     pub fn j_attack(&self, lam: f64, design: OnlineDesign, attack: &Attack) -> Result<f64> {
         attack.validate()?;
         let walk = Walk::new(lam, design, attack.forging())?;

@@ -1,7 +1,7 @@
 //! The attack chain in full generality, built by exploration: states (τ, z, σ) with z the zeros
 //! in the detector's memory since its last reset, any memory mix μ and any periodic blocking
-//! mask. It shares no formula with [`crate::renewal::periodic`], so it is the independent check of the
-//! structured costs, solved by [`crate::chain::stationary::gth`].
+//! mask. It shares no formula with [`crate::renewal::periodic`], so it is the independent check
+//! of the structured costs, solved by [`crate::chain::stationary::gth`].
 
 use std::collections::HashMap;
 

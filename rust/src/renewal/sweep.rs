@@ -1,7 +1,7 @@
 //! The β sweep over every r/t in lowest terms, and the attacker threshold β̄.
 //!
 //! "Block the first r of every t" is a renewal cycle, so J(r, t) = (t W_0 + a_r) / (t M_0 + b_r)
-//! with a_r, b_r accumulated once per r ([`crate::renewal::periodic::Segments::first_r_offsets`]). The
+//! with a_r, b_r accumulated once per r ([`Segments::first_r_offsets`]). The
 //! fractions come from the Farey sequence of order t_max, already sorted by β, at O(1) each.
 
 use rayon::prelude::*;

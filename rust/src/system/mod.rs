@@ -10,7 +10,7 @@
 //! [`spectral`] (ρ(A) and the detectability test).
 //!
 //! Only the model's own methods of [`LinearSystem`] are here; the quantities of the analysis are
-//! its methods in [`crate::analysis`].
+//! its methods in the `analysis` module.
 
 use nalgebra::DMatrix;
 
