@@ -36,7 +36,25 @@
 //! ```
 //!
 //! `examples/paper.rs` (`cargo run --release --example paper`) prints every number of the
-//! paper's example. The modules below are the building blocks, one concept each.
+//! paper's example.
+//!
+//! # Layout
+//! The modules follow the independent routes the crate computes each cost by, so that one route
+//! can check another:
+//! * [`system`]: the model and its closed forms (P̄ by [`riccati`], [`stein`], [`spectral`]);
+//! * [`schedule`]: the schedules without attack (offline, online) and the parameters they share;
+//! * [`chain`]: explicit chains (the paper's attack chain, the general chain, their stationary
+//!   solvers and exact transient curves);
+//! * [`renewal`]: renewal forms of the attacked cost (periodic masks, independent blocking, the
+//!   β sweep, flag-ACK rates);
+//! * [`montecarlo`]: simulation of the real protocol and of the closed-loop game, with its own
+//!   random number generator ([`rng`]);
+//! * [`grid`]: parameter studies over many cells; [`analysis`]: the methods of [`LinearSystem`]
+//!   that tie the routes together; [`attack`] and [`error`]: what all of them share;
+//! * [`engine`]: reserved for a general exact engine.
+//!
+//! The paths of the former flat layout (`fakeack::riccati`, `fakeack::pattern`,
+//! `fakeack::online`, ...) are re-exported here and still resolve.
 //!
 //! # Notation
 //! Following the paper: `a = 1 - lam`, `tr_i = Tr h^i(P̄)`, `w_i = a^i tr_i` (the *weighted*
@@ -52,26 +70,15 @@
 pub mod analysis;
 pub mod attack;
 pub mod chain;
+pub mod engine;
 pub mod error;
-pub mod exact_design;
-pub mod general;
 pub mod grid;
-mod linalg;
 pub mod montecarlo;
-pub mod online;
-pub mod pattern;
 #[cfg(test)]
 mod properties;
-pub mod random;
-pub mod riccati;
-pub mod rng;
-pub mod schedules;
-pub mod spectral;
-pub mod stationary;
-pub mod stein;
-pub mod sweep;
+pub mod renewal;
+pub mod schedule;
 pub mod system;
-pub mod transient;
 
 #[cfg(feature = "python")]
 mod bindings;
@@ -80,7 +87,15 @@ pub use analysis::{flag_rates, BetaBar, Decision, FlagRates, MaskSearch, Schedul
 pub use attack::Attack;
 pub use error::{Error, Result};
 pub use montecarlo::{McConfig, McResult, McSchedule, Mode, Protocol};
-pub use online::{design_online, OnlineDesign};
-pub use schedules::Ratio;
-pub use sweep::Sweep;
+pub use renewal::sweep::Sweep;
+pub use schedule::{design_online, OnlineDesign, Ratio};
 pub use system::LinearSystem;
+
+// The former top-level modules, now files of the groups above: their old paths still resolve.
+pub use chain::{general, stationary, transient};
+pub use montecarlo::rng;
+pub use renewal::{independent as random, periodic as pattern, sweep};
+pub use schedule as online;
+pub use schedule as schedules;
+pub use schedule::exact_design;
+pub use system::{riccati, spectral, stein};

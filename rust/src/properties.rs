@@ -6,12 +6,12 @@ use proptest::prelude::*;
 use proptest::test_runner::RngSeed;
 
 use crate::attack::{longest_cyclic_run, Attack};
+use crate::chain::general;
+use crate::chain::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
 use crate::chain::AttackChain;
-use crate::general;
-use crate::online::OnlineDesign;
-use crate::pattern::Segments;
-use crate::schedules::{j_max, j_online};
-use crate::stationary::{balance_residual, gth, j_attack, pairwise_sum, structured};
+use crate::renewal::periodic::Segments;
+use crate::schedule::OnlineDesign;
+use crate::schedule::{j_max, j_online};
 use crate::system::LinearSystem;
 
 fn system(n: usize, m: usize, entries: &[f64], scale: f64) -> Option<LinearSystem> {
@@ -46,8 +46,8 @@ fn system(n: usize, m: usize, entries: &[f64], scale: f64) -> Option<LinearSyste
 /// φ ~ 1e-9 in 100 000 draws; the correctly rounded exact P̄ of one of them (computed in 60-digit
 /// arithmetic) evaluates to 9.7e-11, a hair under the former bound of 1e-10, and φ grows without
 /// limit as C's view of that direction shrinks, so a fixed bound fails for some draw whatever the
-/// solver. Before the solver's defect correction ([`crate::riccati::steady_state`]) residuals
-/// reached 1e4 φ (2.2e-7) on these draws, and this bound catches that.
+/// solver. Before the solver's defect correction ([`crate::system::riccati::steady_state`])
+/// residuals reached 1e4 φ (2.2e-7) on these draws, and this bound catches that.
 fn residual_floor(sys: &LinearSystem) -> f64 {
     let (a, c, q, r, pbar) = (sys.a(), sys.c(), sys.q(), sys.r(), sys.pbar());
     let n = sys.n();
@@ -135,7 +135,7 @@ proptest! {
         prop_assume!(!bits.iter().all(|&b| b));
         let kmax = longest_cyclic_run(&bits) as u64;
         let tr = |i: usize| 1.0 + 0.3 * i as f64 + 1.1f64.powi(i as i32);
-        let need = crate::pattern::tau_needed(z0, kmax) as usize;
+        let need = crate::renewal::periodic::tau_needed(z0, kmax) as usize;
         let w: Vec<f64> = (0..=need).map(|i| a_pow(lam, i) * tr(i)).collect();
         let design = OnlineDesign::new(z0, mu).unwrap();
         let seg = Segments::new(&w, lam, design, kmax).unwrap();

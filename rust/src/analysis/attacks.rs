@@ -2,19 +2,20 @@
 
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::online::{OnlineDesign, Walk};
-use crate::pattern::Segments;
-use crate::random::{self, ScaledTraces};
-use crate::schedules::Ratio;
+use crate::renewal::independent::{self, ScaledTraces};
+use crate::renewal::periodic::Segments;
+use crate::schedule::Ratio;
+use crate::schedule::{OnlineDesign, Walk};
 use crate::system::LinearSystem;
 use rayon::prelude::*;
 
 impl LinearSystem {
     /// Stationary J under an attack: the paper's eq. (13)-(14) for "first r of t", the renewal
-    /// form of [`crate::pattern`] for any mask and any μ, and [`crate::random`] for independent
-    /// blocking; forged flags enter both through the memory walk ([`Walk`]). A periodic attack
-    /// that blocks every flag-ACK and forges none is refused: its cost is
-    /// [`LinearSystem::j_max`] (independent blocking with β = 1 gives that J_max).
+    /// form of [`periodic`](crate::renewal::periodic) for any mask and any μ, and
+    /// [`independent`] for independent blocking; forged flags enter
+    /// both through the memory walk ([`Walk`]). A periodic attack that blocks every flag-ACK and
+    /// forges none is refused: its cost is [`LinearSystem::j_max`] (independent blocking with
+    /// β = 1 gives that J_max).
     pub fn j_attack(&self, lam: f64, design: OnlineDesign, attack: &Attack) -> Result<f64> {
         attack.validate()?;
         let walk = Walk::new(lam, design, attack.forging())?;
@@ -30,7 +31,7 @@ impl LinearSystem {
     }
 
     fn j_random_walk(&self, walk: &Walk, beta: f64) -> Result<f64> {
-        let cycle = random::cycle(Some(&mut ScaledTraces::new(self, walk)), walk, beta)?;
+        let cycle = independent::cycle(Some(&mut ScaledTraces::new(self, walk)), walk, beta)?;
         Ok(cycle.j())
     }
 
@@ -51,7 +52,7 @@ impl LinearSystem {
             .with_min_len(256)
             .map_init(
                 || ScaledTraces::new(self, &walk),
-                |traces, &b| Ok(random::cycle(Some(traces), &walk, b)?.j()),
+                |traces, &b| Ok(independent::cycle(Some(traces), &walk, b)?.j()),
             )
             .collect()
     }
@@ -64,7 +65,8 @@ impl LinearSystem {
         let j_off = self.j_offline(lam, ratio)?;
         let walk = Walk::new(lam, design, 0.0)?;
         let mut traces = ScaledTraces::new(self, &walk);
-        let mut j = |b: f64| -> Result<f64> { Ok(random::cycle(Some(&mut traces), &walk, b)?.j()) };
+        let mut j =
+            |b: f64| -> Result<f64> { Ok(independent::cycle(Some(&mut traces), &walk, b)?.j()) };
         if j(0.0)? >= j_off {
             return Ok(0.0);
         }

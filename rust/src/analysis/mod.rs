@@ -1,9 +1,14 @@
 //! The crate's front door: every quantity of the analysis as a method of [`LinearSystem`].
 //!
 //! A system and the channel's λ give P̄ and the costs J of both schedules; an online design
-//! ([`OnlineDesign`], from [`design_online`](crate::online::design_online) or given) and an
+//! ([`OnlineDesign`], from [`design_online`](crate::schedule::design_online) or given) and an
 //! [`Attack`] give the attacked cost, the β sweep, both thresholds β̄ and the sensor's decision;
 //! a [`Schedule`] gives exact finite-horizon curves and the Monte Carlo of the protocol.
+//!
+//! `impl LinearSystem` is split by method family: the model's own methods (construction, P̄, the
+//! traces, the Stein solve) are in [`crate::system`]; every quantity computed from them is here,
+//! one file per family: costs, thresholds, decisions and curves in this file, the attacked costs
+//! in `attacks`, the Monte Carlo entries (protocol and game) in `simulate`.
 //!
 //! ```
 //! use fakeack::{Attack, LinearSystem, OnlineDesign, Ratio};
@@ -19,24 +24,22 @@
 //! # Ok::<(), fakeack::Error>(())
 //! ```
 
-use std::sync::atomic::{AtomicBool, AtomicU64};
-
 mod attacks;
-mod rates;
+mod simulate;
 
-pub use rates::{flag_rates, FlagRates};
+pub use crate::renewal::rates::{flag_rates, FlagRates};
 
 use crate::attack::Attack;
+use crate::chain::general::capped_attack_chain;
+use crate::chain::transient;
 use crate::chain::AttackChain;
 use crate::error::{Error, Result};
-use crate::general::capped_attack_chain;
-use crate::montecarlo::{self, McConfig, McResult, McSchedule};
-use crate::online::{check_lam, OnlineDesign};
-use crate::pattern::{self, tau_needed, Segments};
-use crate::schedules::{self, offline_schedule, Ratio};
-use crate::sweep::{self, Sweep};
+use crate::montecarlo::McSchedule;
+use crate::renewal::periodic::{self, tau_needed, Segments};
+use crate::renewal::sweep::{self, Sweep};
+use crate::schedule::{self, offline_schedule, Ratio};
+use crate::schedule::{check_lam, OnlineDesign};
 use crate::system::LinearSystem;
-use crate::transient;
 
 /// The sensor's power schedule.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -103,19 +106,13 @@ pub struct MaskSearch {
 }
 
 impl LinearSystem {
-    /// A scalar system x' = a x + w, y = c x + v with noise variances q and r (1×1 matrices).
-    pub fn scalar(a: f64, c: f64, q: f64, r: f64) -> Result<Self> {
-        let m = |x: f64| nalgebra::DMatrix::from_element(1, 1, x);
-        LinearSystem::new(m(a), m(c), m(q), m(r))
-    }
-
     /// J of the optimal offline schedule for energy ratio p/q (Theorem 3.1's proposition, with
     /// the block counts of Model note 1).
     pub fn j_offline(&self, lam: f64, ratio: Ratio) -> Result<f64> {
         check_lam(lam)?;
         let s0 = ratio.offline_blocks().s0;
         let w = self.checked_weighted_traces(1.0 - lam, s0 as u128 + 1, "ratio")?;
-        schedules::j_offline(&w, lam, ratio)
+        schedule::j_offline(&w, lam, ratio)
     }
 
     /// J of the online schedule without attack (Theorem 4.5 of Han et al., Model note 2).
@@ -123,13 +120,13 @@ impl LinearSystem {
         check_lam(lam)?;
         design.validate()?;
         let w = self.checked_weighted_traces(1.0 - lam, design.z0 as u128 + 1, "z0")?;
-        schedules::j_online(&w, lam, design)
+        schedule::j_online(&w, lam, design)
     }
 
     /// J with every flag-ACK blocked: Σ_i λ a^i Tr h^i(P̄), by a Stein equation; `inf` when
     /// (1-λ) ρ(A)² >= 1 (Model note 5).
     pub fn j_max(&self, lam: f64) -> Result<f64> {
-        schedules::j_max(self, lam)
+        schedule::j_max(self, lam)
     }
 
     /// Segments of the memory walk deep enough for `kmax` blocked flags in a row.
@@ -141,7 +138,7 @@ impl LinearSystem {
     /// can do with the consecutive pattern.
     pub fn j_attack_limit(&self, lam: f64, design: OnlineDesign, beta: f64) -> Result<f64> {
         let seg = self.segments(lam, design, 0)?;
-        pattern::j_limit(&seg, lam, self.j_max(lam)?, beta)
+        periodic::j_limit(&seg, lam, self.j_max(lam)?, beta)
     }
 
     /// J at every β = r/t in lowest terms with 1 <= r < t <= t_max, in increasing β (a Farey
@@ -165,7 +162,7 @@ impl LinearSystem {
         let j_max = self.j_max(lam)?;
         Ok(BetaBar {
             finite: sweep::first_crossing(&seg, t_max, j_offline)?,
-            limit: pattern::beta_limit_threshold(&seg, lam, j_max, j_offline),
+            limit: periodic::beta_limit_threshold(&seg, lam, j_max, j_offline),
             j_offline,
             j_online: self.j_online(lam, design)?,
             j_max,
@@ -184,10 +181,10 @@ impl LinearSystem {
         let j_offline = self.j_offline(lam, ratio)?;
         let seg = self.segments(lam, design, 0)?;
         let j_max = self.j_max(lam)?;
-        let j_online_attacked = pattern::j_limit(&seg, lam, j_max, beta)?;
+        let j_online_attacked = periodic::j_limit(&seg, lam, j_max, beta)?;
         Ok(Decision {
             online: j_online_attacked < j_offline,
-            beta_bar: pattern::beta_limit_threshold(&seg, lam, j_max, j_offline),
+            beta_bar: periodic::beta_limit_threshold(&seg, lam, j_max, j_offline),
             j_online_attacked,
             j_offline,
             j_online: self.j_online(lam, design)?,
@@ -204,7 +201,7 @@ impl LinearSystem {
         blocked: usize,
     ) -> Result<MaskSearch> {
         let seg = self.segments(lam, design, t.saturating_sub(1) as u64)?;
-        let (mask, j, j_consecutive) = pattern::worst_mask(&seg, t, blocked)?;
+        let (mask, j, j_consecutive) = periodic::worst_mask(&seg, t, blocked)?;
         Ok(MaskSearch {
             mask,
             j,
@@ -245,26 +242,6 @@ impl LinearSystem {
             }
         }
     }
-
-    /// Monte Carlo of the real protocol (see [`crate::montecarlo`]); results depend on the seed
-    /// only. Runs to the end: use [`LinearSystem::simulate_with`] to cancel or watch progress.
-    pub fn simulate(&self, cfg: &McConfig) -> Result<McResult> {
-        self.simulate_with(cfg, &AtomicBool::new(false), &AtomicU64::new(0))
-    }
-
-    /// [`LinearSystem::simulate`] that stops with [`Error::Interrupted`] soon after `cancel` is
-    /// set and adds finished runs to `progress`.
-    pub fn simulate_with(
-        &self,
-        cfg: &McConfig,
-        cancel: &AtomicBool,
-        progress: &AtomicU64,
-    ) -> Result<McResult> {
-        if matches!(cfg.schedule, McSchedule::Offline { .. }) && cfg.attack.is_some() {
-            return Err(offline_takes_no_attack());
-        }
-        montecarlo::simulate(self, cfg, cancel, progress)
-    }
 }
 
 fn offline_takes_no_attack() -> Error {
@@ -294,7 +271,7 @@ pub fn traces_needed(design: OnlineDesign, attack: &Attack) -> u128 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::stationary;
+    use crate::chain::stationary;
 
     fn paper() -> LinearSystem {
         LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap()

@@ -1,5 +1,5 @@
-//! The closed-loop game Monte Carlo ([`crate::montecarlo::game`]): converts the policy, runs with the GIL
-//! released, Ctrl-C and progress, returns per-run arrays.
+//! For `fakeack.game`: the closed-loop game Monte Carlo ([`crate::montecarlo::game`]): converts
+//! the policy, runs with the GIL released, Ctrl-C and progress, returns per-run arrays.
 
 use numpy::IntoPyArray;
 use pyo3::exceptions::PyValueError;
@@ -7,11 +7,12 @@ use pyo3::prelude::*;
 use pyo3::types::PyDict;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
-use super::simulate::run_interruptible;
-use super::system::PySystem;
-use super::{attack_of, design, PyAttack};
+use super::attacks::{attack_of, PyAttack};
+use super::design;
+use super::model::PySystem;
+use super::montecarlo::run_interruptible;
 use crate::montecarlo::game::{Detector, GameConfig, Policy};
-use crate::schedules::{offline_schedule, Ratio};
+use crate::schedule::{offline_schedule, Ratio};
 
 /// The policy named `kind`: "online" (never tested), "offline", "count" (alarm iff N <= lo or
 /// N >= hi) or "interval" (alarm iff Pearson's X² over `edges`/`expected` exceeds `critical`).

@@ -2,8 +2,10 @@
 //! and the types the crate root re-exports) and maps [`Error`] to Python exceptions. No
 //! numerics here; long calls run with the GIL released on owned data.
 //!
-//! One file per group of Python-facing items: `system` (the system class and its costs),
-//! `chains` (chains, stationary laws, schedules and rates), `simulate` (the Monte Carlo).
+//! One file per Python subpackage that calls it: `model` (the system class and its costs, the
+//! schedules), `attacks` (the attack class, chains and stationary laws), `detection` (flag-ACK
+//! rates), `montecarlo` (the Monte Carlo), `game` (the closed-loop game) and `studies` (parameter
+//! grids). All of them register in the one module `fakeack._fakeack` below.
 
 use nalgebra::DMatrix;
 use numpy::ndarray::Array2;
@@ -13,13 +15,14 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyValueError};
 use pyo3::prelude::*;
 
 use crate::error::Error;
-use crate::{Attack, OnlineDesign};
+use crate::OnlineDesign;
 
-mod chains;
+mod attacks;
+mod detection;
 mod game;
-mod grid;
-mod simulate;
-mod system;
+mod model;
+mod montecarlo;
+mod studies;
 
 create_exception!(
     _fakeack,
@@ -53,52 +56,6 @@ pub(crate) fn design(z0: u64, mu: f64) -> PyResult<OnlineDesign> {
     Ok(OnlineDesign::new(z0, mu)?)
 }
 
-/// An attack on the flag-ACKs (wrapped by `fakeack.PeriodicBlocking` and friends).
-#[pyclass(frozen, name = "Attack", module = "fakeack._fakeack")]
-pub(crate) struct PyAttack {
-    pub(crate) inner: Attack,
-}
-
-#[pymethods]
-impl PyAttack {
-    #[staticmethod]
-    fn periodic(r: u64, t: u64) -> PyResult<Self> {
-        Ok(PyAttack {
-            inner: Attack::periodic(r, t)?,
-        })
-    }
-
-    #[staticmethod]
-    fn mask(mask: Vec<bool>) -> PyResult<Self> {
-        Ok(PyAttack {
-            inner: Attack::mask(mask)?,
-        })
-    }
-
-    #[staticmethod]
-    fn random(beta: f64) -> PyResult<Self> {
-        Ok(PyAttack {
-            inner: Attack::random(beta)?,
-        })
-    }
-
-    #[staticmethod]
-    #[pyo3(signature = (gamma, block))]
-    fn injection(gamma: f64, block: Option<&Bound<'_, PyAttack>>) -> PyResult<Self> {
-        Ok(PyAttack {
-            inner: Attack::injection(gamma, attack_of(block))?,
-        })
-    }
-
-    fn __str__(&self) -> String {
-        self.inner.to_string()
-    }
-}
-
-pub(crate) fn attack_of(a: Option<&Bound<'_, PyAttack>>) -> Option<Attack> {
-    a.map(|a| a.get().inner.clone())
-}
-
 /// Raises the exception that the [`Error`] variant named `kind` maps to, so that the mapping of
 /// every variant is tested from Python ("invalid", "too_large", "not_converged", "interrupted").
 #[pyfunction]
@@ -130,27 +87,27 @@ fn raise_core_error(kind: &str) -> PyResult<()> {
 fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // The package version has one source, Cargo.toml; `fakeack.__version__` reads it from here.
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
-    m.add_class::<system::PySystem>()?;
-    m.add_class::<PyAttack>()?;
+    m.add_class::<model::PySystem>()?;
+    m.add_class::<attacks::PyAttack>()?;
     m.add("ConvergenceError", m.py().get_type::<ConvergenceError>())?;
-    m.add_function(wrap_pyfunction!(chains::offline_schedule, m)?)?;
-    m.add_function(wrap_pyfunction!(chains::high_power_rate, m)?)?;
-    m.add_function(wrap_pyfunction!(chains::flag_rates, m)?)?;
-    m.add_function(wrap_pyfunction!(chains::num_states, m)?)?;
-    m.add_function(wrap_pyfunction!(chains::attack_chain, m)?)?;
-    m.add_function(wrap_pyfunction!(chains::stationary_structured, m)?)?;
-    m.add_function(wrap_pyfunction!(chains::general_attack_chain, m)?)?;
-    m.add_function(wrap_pyfunction!(simulate::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(model::offline_schedule, m)?)?;
+    m.add_function(wrap_pyfunction!(model::high_power_rate, m)?)?;
+    m.add_function(wrap_pyfunction!(detection::flag_rates, m)?)?;
+    m.add_function(wrap_pyfunction!(attacks::num_states, m)?)?;
+    m.add_function(wrap_pyfunction!(attacks::attack_chain, m)?)?;
+    m.add_function(wrap_pyfunction!(attacks::stationary_structured, m)?)?;
+    m.add_function(wrap_pyfunction!(attacks::general_attack_chain, m)?)?;
+    m.add_function(wrap_pyfunction!(montecarlo::simulate, m)?)?;
     m.add_function(wrap_pyfunction!(raise_core_error, m)?)?;
-    m.add_function(wrap_pyfunction!(grid::grid_cells, m)?)?;
-    m.add_function(wrap_pyfunction!(grid::grid_designs, m)?)?;
+    m.add_function(wrap_pyfunction!(studies::grid_cells, m)?)?;
+    m.add_function(wrap_pyfunction!(studies::grid_designs, m)?)?;
     m.add_function(wrap_pyfunction!(game::simulate_game, m)?)?;
-    m.add_function(wrap_pyfunction!(chains::stationary_gth, m)?)?;
-    m.add_function(wrap_pyfunction!(chains::balance_residual, m)?)?;
+    m.add_function(wrap_pyfunction!(attacks::stationary_gth, m)?)?;
+    m.add_function(wrap_pyfunction!(attacks::balance_residual, m)?)?;
     m.add("MAX_BUILD_STATES", crate::chain::MAX_BUILD_STATES as u64)?;
     m.add(
         "MAX_VECTOR_STATES",
-        crate::stationary::MAX_VECTOR_STATES as u64,
+        crate::chain::stationary::MAX_VECTOR_STATES as u64,
     )?;
     m.add("DEFAULT_TOL", crate::system::DEFAULT_TOL)?;
     m.add("DEFAULT_MAX_ITER", crate::system::DEFAULT_MAX_ITER)?;

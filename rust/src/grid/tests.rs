@@ -4,7 +4,7 @@
 use nalgebra::DMatrix;
 
 use super::*;
-use crate::online::design_online;
+use crate::schedule::design_online;
 
 fn paper() -> LinearSystem {
     LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap()

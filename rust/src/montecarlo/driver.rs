@@ -12,7 +12,7 @@ use super::plan::Plan;
 use super::state::state_tile;
 use super::{BLOCK_RUNS, LANES};
 use crate::error::{Error, Result};
-use crate::rng::{SplitMix64, Xoshiro256pp};
+use crate::montecarlo::rng::{SplitMix64, Xoshiro256pp};
 use crate::system::LinearSystem;
 
 /// Runs one tile with the kernel matching the plan (const-generic dispatch).

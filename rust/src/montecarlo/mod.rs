@@ -169,6 +169,7 @@ mod driver;
 pub mod game;
 mod kernel;
 mod plan;
+pub mod rng;
 mod state;
 #[cfg(test)]
 mod tests;

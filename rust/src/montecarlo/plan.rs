@@ -9,11 +9,11 @@ use super::kernel::{Params, SlicedThreshold};
 use super::state::StateModel;
 use super::{KernelFlags, MAX_HORIZON, MAX_RECORDED_RUNS};
 use crate::attack::{longest_cyclic_run, Attack};
+use crate::chain::general::capped_attack_chain;
+use crate::chain::stationary::gth;
 use crate::error::{Error, Result};
-use crate::general::capped_attack_chain;
-use crate::online::{check_lam, OnlineDesign};
-use crate::rng::bernoulli_threshold;
-use crate::stationary::gth;
+use crate::montecarlo::rng::bernoulli_threshold;
+use crate::schedule::{check_lam, OnlineDesign};
 use crate::system::LinearSystem;
 
 /// The largest holding time τ a run can reach (before capping by the horizon) under the

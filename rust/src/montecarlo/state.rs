@@ -10,7 +10,7 @@ use super::kernel::{
 };
 use super::{CHUNK_STEPS, LANES};
 use crate::error::{Error, Result};
-use crate::rng::{NormalSampler, Xoshiro256pp};
+use crate::montecarlo::rng::{NormalSampler, Xoshiro256pp};
 use crate::system::LinearSystem;
 
 /// Row-major dense matrices of the error recursions, with noise factors Lq (n × rq, Q = Lq Lq'),

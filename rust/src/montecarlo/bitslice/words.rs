@@ -3,7 +3,7 @@
 
 #[cfg(target_arch = "x86_64")]
 use crate::montecarlo::cpu::Avx2;
-use crate::rng::{xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
+use crate::montecarlo::rng::{xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
 
 /// Words per block; 64 runs per word.
 pub(crate) const WORDS: usize = 4;
@@ -170,7 +170,7 @@ fn next_avx2(s: &mut [W; 4]) -> W {
         // SAFETY: `s[k]` holds the 4 u64s (32 bytes) read; the unaligned load takes any address.
         unsafe { _mm256_loadu_si256(s[k].as_ptr().cast::<__m256i>()) }
     });
-    let out = crate::rng::xoshiro256pp_x4_avx2(&mut v);
+    let out = crate::montecarlo::rng::xoshiro256pp_x4_avx2(&mut v);
     for (k, w) in s.iter_mut().enumerate() {
         // SAFETY: `w` holds the 4 u64s (32 bytes) written; the unaligned store takes any address.
         unsafe { _mm256_storeu_si256(w.as_mut_ptr().cast::<__m256i>(), v[k]) };

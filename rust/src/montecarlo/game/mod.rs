@@ -19,7 +19,7 @@
 //! had reset the memory, so a loss makes z = 1), its flag (at z = z0 with probability μ, always
 //! at z0 + 1), the attacker's block (its counter's mask entry, or probability β) and forgery
 //! (probability γ on a step without a genuine flag). These are the rules of
-//! [`crate::general::capped_attack_chain`], which the tests compare with.
+//! [`crate::chain::general::capped_attack_chain`], which the tests compare with.
 //!
 //! # Engineering
 //! Two kernels, with the same protocol and different random streams (so one seed gives equally
@@ -55,8 +55,8 @@ use super::bitslice::RUNS;
 use super::cpu::Avx2;
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::online::{check_lam, OnlineDesign};
-use crate::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
+use crate::montecarlo::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
+use crate::schedule::{check_lam, OnlineDesign};
 use crate::system::LinearSystem;
 
 /// Runs simulated in lock-step by one kernel call.
@@ -235,90 +235,73 @@ impl GameConfig {
     }
 }
 
-impl LinearSystem {
-    /// The closed-loop game Monte Carlo (see the [module docs](crate::montecarlo::game)).
-    pub fn simulate_game(&self, cfg: &GameConfig) -> Result<GameRuns> {
-        self.simulate_game_with(cfg, &AtomicBool::new(false), &AtomicU64::new(0))
-    }
-
-    /// [`LinearSystem::simulate_game`] that stops with [`Error::Interrupted`] soon after
-    /// `cancel` is set and adds finished runs to `progress`.
-    pub fn simulate_game_with(
-        &self,
-        cfg: &GameConfig,
-        cancel: &AtomicBool,
-        progress: &AtomicU64,
-    ) -> Result<GameRuns> {
-        self.simulate_game_on(cfg, cancel, progress, true)
-    }
-
-    /// [`LinearSystem::simulate_game_with`], on the bit-sliced kernel when `sliced` and the
-    /// plan fits it, else on the lane kernel.
-    pub(in crate::montecarlo) fn simulate_game_on(
-        &self,
-        cfg: &GameConfig,
-        cancel: &AtomicBool,
-        progress: &AtomicU64,
-        sliced: bool,
-    ) -> Result<GameRuns> {
-        let plan = Plan::new(self, cfg)?;
-        let runs = cfg.runs as usize;
-        let h = cfg.horizon as f64;
-        let mut out = GameRuns::default();
-        let mut keep = |cost: f64, high: u64, online: u64, counts: [u64; 4]| {
-            if out.cost.len() < runs {
-                out.cost.push(cost / h);
-                out.high_power.push(high as f64 / h);
-                out.online.push(online as f64 / h);
-                out.tested.push(counts[0]);
-                out.alarms.push(counts[1]);
-                out.fallbacks.push(counts[2]);
-                out.delivered.push(counts[3]);
-            }
-        };
-        if let Some(s) = Sliced::of(&plan).filter(|_| sliced) {
-            let blocks = cfg.runs.div_ceil(RUNS as u64);
-            let avx2 = Avx2::detect();
-            let done = (0..blocks)
-                .into_par_iter()
-                .map(|b| {
-                    let out = sliced::run_block(&s, &plan, b, avx2, cancel)?;
-                    // The runs this block holds (the last may be partial).
-                    progress.fetch_add(
-                        (RUNS as u64).min(cfg.runs - b * RUNS as u64),
-                        Ordering::Relaxed,
-                    );
-                    Ok(out)
-                })
-                .collect::<Result<Vec<_>>>()?;
-            for t in &done {
-                for l in 0..RUNS {
-                    let counts = [t.tested[l], t.alarms[l], t.fallbacks[l], t.delivered[l]];
-                    keep(t.cost[l], t.high[l], t.online_steps[l], counts);
-                }
-            }
-            return Ok(out);
+/// [`LinearSystem::simulate_game_with`], on the bit-sliced kernel when `sliced` and the plan
+/// fits it, else on the lane kernel. The method itself is in `analysis`, with the system's other
+/// quantities.
+pub(crate) fn simulate_on(
+    sys: &LinearSystem,
+    cfg: &GameConfig,
+    cancel: &AtomicBool,
+    progress: &AtomicU64,
+    sliced: bool,
+) -> Result<GameRuns> {
+    let plan = Plan::new(sys, cfg)?;
+    let runs = cfg.runs as usize;
+    let h = cfg.horizon as f64;
+    let mut out = GameRuns::default();
+    let mut keep = |cost: f64, high: u64, online: u64, counts: [u64; 4]| {
+        if out.cost.len() < runs {
+            out.cost.push(cost / h);
+            out.high_power.push(high as f64 / h);
+            out.online.push(online as f64 / h);
+            out.tested.push(counts[0]);
+            out.alarms.push(counts[1]);
+            out.fallbacks.push(counts[2]);
+            out.delivered.push(counts[3]);
         }
-        let tiles = cfg.runs.div_ceil(LANES as u64);
-        let done: Vec<Tile> = (0..tiles)
+    };
+    if let Some(s) = Sliced::of(&plan).filter(|_| sliced) {
+        let blocks = cfg.runs.div_ceil(RUNS as u64);
+        let avx2 = Avx2::detect();
+        let done = (0..blocks)
             .into_par_iter()
             .map(|b| {
-                let t = run_tile(&plan, b, cancel)?;
+                let out = sliced::run_block(&s, &plan, b, avx2, cancel)?;
+                // The runs this block holds (the last may be partial).
                 progress.fetch_add(
-                    (LANES as u64).min(cfg.runs - b * LANES as u64),
+                    (RUNS as u64).min(cfg.runs - b * RUNS as u64),
                     Ordering::Relaxed,
                 );
-                Ok(t)
+                Ok(out)
             })
             .collect::<Result<Vec<_>>>()?;
         for t in &done {
-            for l in 0..LANES {
+            for l in 0..RUNS {
                 let counts = [t.tested[l], t.alarms[l], t.fallbacks[l], t.delivered[l]];
                 keep(t.cost[l], t.high[l], t.online_steps[l], counts);
             }
         }
-        Ok(out)
+        return Ok(out);
     }
+    let tiles = cfg.runs.div_ceil(LANES as u64);
+    let done: Vec<Tile> = (0..tiles)
+        .into_par_iter()
+        .map(|b| {
+            let t = run_tile(&plan, b, cancel)?;
+            progress.fetch_add(
+                (LANES as u64).min(cfg.runs - b * LANES as u64),
+                Ordering::Relaxed,
+            );
+            Ok(t)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    for t in &done {
+        for l in 0..LANES {
+            let counts = [t.tested[l], t.alarms[l], t.fallbacks[l], t.delivered[l]];
+            keep(t.cost[l], t.high[l], t.online_steps[l], counts);
+        }
+    }
+    Ok(out)
 }
 
 #[cfg(test)]

@@ -3,7 +3,7 @@
 
 use super::plan::Plan;
 use super::*;
-use crate::schedules::{offline_schedule, Ratio};
+use crate::schedule::{offline_schedule, Ratio};
 
 fn paper() -> LinearSystem {
     LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap()
@@ -30,9 +30,7 @@ fn both(sys: &LinearSystem, cfg: &GameConfig) -> [GameRuns; 2] {
     assert!(Sliced::of(&Plan::new(sys, cfg).unwrap()).is_some());
     [true, false].map(|sliced| {
         let progress = AtomicU64::new(0);
-        let out = sys
-            .simulate_game_on(cfg, &AtomicBool::new(false), &progress, sliced)
-            .unwrap();
+        let out = simulate_on(sys, cfg, &AtomicBool::new(false), &progress, sliced).unwrap();
         // Progress counts runs, a partial last block or tile counting only its runs.
         assert_eq!(progress.into_inner(), cfg.runs);
         out
@@ -307,8 +305,14 @@ fn game_speed() {
             cfg.burn_in = 0;
             for (kernel, sliced) in [("bit-sliced", true), ("lanes", false)] {
                 let start = std::time::Instant::now();
-                sys.simulate_game_on(&cfg, &AtomicBool::new(false), &AtomicU64::new(0), sliced)
-                    .unwrap();
+                simulate_on(
+                    &sys,
+                    &cfg,
+                    &AtomicBool::new(false),
+                    &AtomicU64::new(0),
+                    sliced,
+                )
+                .unwrap();
                 let s = start.elapsed().as_secs_f64();
                 println!(
                     "{policy_name} / {name} ({kernel}): {:.2e} steps/s",

@@ -4,8 +4,7 @@
 
 use super::{lanes4, Isa, Lanes, Params, Proto, LANES};
 use crate::error::{Error, Result};
-use crate::montecarlo::SLICE_BITS;
-use crate::rng::Xoshiro256pp;
+use crate::montecarlo::rng::Xoshiro256pp;
 
 /// Steps per sub-chunk of the grouped kernels: each group of 4 lanes runs this many steps with
 /// its state in registers and writes its masked per-step values to a buffer (16 KiB), which is
@@ -257,27 +256,6 @@ macro_rules! group_body {
             pattern_pos,
         }
     }};
-}
-
-/// Resolves the 16-bit slice ties of four lanes (all ones where the extended draw hits): the
-/// 48 lower bits of the exact threshold are compared with 48 bits of the lane's side stream.
-#[cold]
-#[inline(never)]
-pub(super) fn resolve_ties4(
-    hit: &mut [u64; 4],
-    tie: &[u64; 4],
-    side: &mut [Xoshiro256pp],
-    rest: u64,
-) {
-    for ((h, &t), s) in hit.iter_mut().zip(tie).zip(side.iter_mut()) {
-        if t != 0 {
-            *h = if (s.next_u64() >> SLICE_BITS) < rest {
-                u64::MAX
-            } else {
-                0
-            };
-        }
-    }
 }
 
 /// The grouped kernel on plain arrays.

@@ -1,9 +1,9 @@
 //! Four-lane operations on plain arrays: the portable instantiation of the grouped kernel.
 
-use super::grouped::resolve_ties4;
+use super::resolve_ties4;
 use super::Proto;
+use crate::montecarlo::rng::Xoshiro256pp;
 use crate::montecarlo::{SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
-use crate::rng::Xoshiro256pp;
 
 /// Four u64 lanes.
 pub(super) type U = [u64; 4];
@@ -183,7 +183,7 @@ impl Stream {
     #[inline(always)]
     pub(super) fn draw(&mut self, top: U, rest: u64, side: &mut [Xoshiro256pp]) -> U {
         if self.slices_left == 0 {
-            self.slice_word = crate::rng::xoshiro256pp_x4(&mut self.s);
+            self.slice_word = crate::montecarlo::rng::xoshiro256pp_x4(&mut self.s);
             self.slices_left = SLICES_PER_WORD;
         }
         self.slices_left -= 1;

@@ -8,10 +8,10 @@
 
 use std::arch::x86_64::*;
 
-use super::grouped::resolve_ties4;
+use super::resolve_ties4;
 use super::Proto;
+use crate::montecarlo::rng::Xoshiro256pp;
 use crate::montecarlo::{SLICES_PER_WORD, SLICE_MASK};
-use crate::rng::Xoshiro256pp;
 
 /// Four u64 lanes.
 pub(super) type U = __m256i;
@@ -276,7 +276,7 @@ impl Stream {
     pub(super) fn draw(&mut self, top: U, rest: u64, side: &mut [Xoshiro256pp]) -> U {
         if self.slices_left == 0 {
             let mut s = [self.s0, self.s1, self.s2, self.s3];
-            self.slice_word = crate::rng::xoshiro256pp_x4_avx2(&mut s);
+            self.slice_word = crate::montecarlo::rng::xoshiro256pp_x4_avx2(&mut s);
             [self.s0, self.s1, self.s2, self.s3] = s;
             self.slices_left = SLICES_PER_WORD;
         }

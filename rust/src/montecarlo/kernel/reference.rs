@@ -5,8 +5,8 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use super::{lane_sum, Lanes, Params, Proto, Tile, TileOut, LANES};
 use crate::error::{Error, Result};
+use crate::montecarlo::rng::Xoshiro256pp;
 use crate::montecarlo::{CHUNK_STEPS, SLICES_PER_WORD, SLICE_BITS, SLICE_MASK};
-use crate::rng::Xoshiro256pp;
 
 /// Resolves ties of the 16-bit Bernoulli slices with 48 more bits from the side streams.
 #[cold]

@@ -98,7 +98,8 @@ fn attack_matches_chain() {
     let sys = scalar_sys();
     let lam = 0.5;
     let chain = crate::chain::AttackChain::new(lam, 2, 1, 3).unwrap();
-    let exact = crate::stationary::j_attack(&chain, &sys.weighted_traces(1.0 - lam, 10)).unwrap();
+    let exact =
+        crate::chain::stationary::j_attack(&chain, &sys.weighted_traces(1.0 - lam, 10)).unwrap();
     let cfg = McConfig {
         horizon: scaled(100_000) as usize,
         runs: scaled(512),

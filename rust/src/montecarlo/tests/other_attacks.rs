@@ -4,7 +4,7 @@
 //! code with the simulation).
 
 use super::*;
-use crate::online::OnlineDesign;
+use crate::schedule::OnlineDesign;
 
 /// An online experiment under `attack`.
 fn attacked(lam: f64, z0: u64, mu: f64, attack: Attack) -> McConfig {

@@ -260,8 +260,8 @@ fn plan(
     depth: usize,
 ) -> BsPlan {
     BsPlan {
-        lam_thr: crate::rng::bernoulli_threshold(lam),
-        mu_thr: crate::rng::bernoulli_threshold(mu),
+        lam_thr: crate::montecarlo::rng::bernoulli_threshold(lam),
+        mu_thr: crate::montecarlo::rng::bernoulli_threshold(mu),
         beta_thr: 0,
         gamma_thr: 0,
         z0,
@@ -336,7 +336,7 @@ impl Case {
     /// Blocks each genuine flag independently with probability `beta` (no mask).
     fn random(mut self, beta: f64) -> Self {
         assert!(self.mask.is_none());
-        self.plan.beta_thr = crate::rng::bernoulli_threshold(beta);
+        self.plan.beta_thr = crate::montecarlo::rng::bernoulli_threshold(beta);
         self.flags.attack = true;
         self.flags.random_block = true;
         self
@@ -344,7 +344,7 @@ impl Case {
 
     /// Forges a flag with probability `gamma` on each step without a genuine one.
     fn forge(mut self, gamma: f64) -> Self {
-        self.plan.gamma_thr = crate::rng::bernoulli_threshold(gamma);
+        self.plan.gamma_thr = crate::montecarlo::rng::bernoulli_threshold(gamma);
         self.flags.forge = true;
         self
     }

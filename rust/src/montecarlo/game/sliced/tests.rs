@@ -10,9 +10,9 @@
 use std::collections::VecDeque;
 
 use super::*;
-use crate::montecarlo::bitslice::words::{from_lanes, lane};
+use crate::montecarlo::bitslice::words::{from_lanes, lane, ONES, ZERO};
 use crate::montecarlo::game::GameConfig;
-use crate::online::OnlineDesign;
+use crate::schedule::OnlineDesign;
 use crate::system::LinearSystem;
 
 /// A Bernoulli(p) draw for the lanes of `need`; a sure one (p >= 1) draws nothing.

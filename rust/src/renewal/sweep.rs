@@ -1,13 +1,13 @@
 //! The β sweep over every r/t in lowest terms, and the attacker threshold β̄.
 //!
 //! "Block the first r of every t" is a renewal cycle, so J(r, t) = (t W_0 + a_r) / (t M_0 + b_r)
-//! with a_r, b_r accumulated once per r ([`crate::pattern::Segments::first_r_offsets`]). The
+//! with a_r, b_r accumulated once per r ([`Segments::first_r_offsets`]). The
 //! fractions come from the Farey sequence of order t_max, already sorted by β, at O(1) each.
 
 use rayon::prelude::*;
 
 use crate::error::{Error, Result};
-use crate::pattern::Segments;
+use crate::renewal::periodic::Segments;
 
 /// Most fractions one sweep will hold (4 arrays, 24 bytes per fraction).
 pub const MAX_FRACTIONS: u128 = 400_000_000;
@@ -89,7 +89,7 @@ impl FirstR {
     #[inline]
     fn j(&self, r: u32, t: u32) -> f64 {
         let (a, b) = (self.a[r as usize], self.b[r as usize]);
-        crate::pattern::first_r_j(t as f64, self.w0, a, self.m0, b)
+        crate::renewal::periodic::first_r_j(t as f64, self.w0, a, self.m0, b)
     }
 }
 
@@ -246,7 +246,7 @@ mod tests {
         let w: Vec<f64> = (0..400)
             .map(|i| 0.5f64.powi(i) * (1.0 + 1.44f64.powi(i)))
             .collect();
-        let design = crate::online::OnlineDesign::fixed(2).unwrap();
+        let design = crate::schedule::OnlineDesign::fixed(2).unwrap();
         let seg = Segments::new(&w, lam, design, 60).unwrap();
         let s = sweep(&seg, 61).unwrap();
         for i in 0..s.r.len() {
@@ -268,7 +268,7 @@ mod tests {
     #[test]
     fn sweep_limits() {
         let w: Vec<f64> = (0..40).map(|i| 0.5f64.powi(i)).collect();
-        let design = crate::online::OnlineDesign::fixed(2).unwrap();
+        let design = crate::schedule::OnlineDesign::fixed(2).unwrap();
         let seg = Segments::new(&w, 0.5, design, 2).unwrap();
         assert_eq!(sweep(&seg, 2).unwrap().r, vec![1]);
         assert!(first_crossing(&seg, 2, 0.0).unwrap().is_some());
@@ -289,7 +289,7 @@ mod tests {
             .map(|i| 0.5f64.powi(i) * (1.0 + 1.44f64.powi(i)))
             .collect();
         for mu in [1.0, 0.4] {
-            let design = crate::online::OnlineDesign::new(2, mu).unwrap();
+            let design = crate::schedule::OnlineDesign::new(2, mu).unwrap();
             let seg = Segments::new(&w, lam, design, 40).unwrap();
             let s = sweep(&seg, 41).unwrap();
             let build = |k| Segments::new(&w, lam, design, k);
@@ -308,7 +308,7 @@ mod tests {
             }
         }
         assert!(first_crossing_by_depth(
-            |k| Segments::new(&w, lam, crate::online::OnlineDesign::fixed(2).unwrap(), k),
+            |k| Segments::new(&w, lam, crate::schedule::OnlineDesign::fixed(2).unwrap(), k),
             1,
             1.0,
             4

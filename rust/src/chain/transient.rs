@@ -118,13 +118,13 @@ pub fn chain(csr: &Csr, states_tau: &[u64], tr: &[f64], horizon: usize) -> Resul
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::general;
+    use crate::chain::general;
 
     #[test]
     fn online_curve_converges_to_stationary() {
         let lam = 0.5;
         let tr: Vec<f64> = (0..40).map(|i| 1.0 + i as f64).collect();
-        let design = crate::online::OnlineDesign::fixed(2).unwrap();
+        let design = crate::schedule::OnlineDesign::fixed(2).unwrap();
         let no_attack = crate::attack::Attack::mask(vec![false]).unwrap();
         let (states, csr) = general::general_attack_chain(lam, design, &no_attack).unwrap();
         let taus: Vec<u64> = states.iter().map(|s| s.tau).collect();

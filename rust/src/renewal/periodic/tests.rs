@@ -1,8 +1,7 @@
-//! Tests of the renewal form against the structured chain and closed forms.
+//! Tests of the renewal form against closed forms. Its check against the structured chain is in
+//! `chain::stationary`'s tests, since the chain's solver already builds on this module.
 
 use super::*;
-use crate::chain::AttackChain;
-use crate::stationary;
 
 fn fixed(z0: u64) -> OnlineDesign {
     OnlineDesign::fixed(z0).unwrap()
@@ -12,26 +11,6 @@ fn wtr(lam: f64, n: usize) -> Vec<f64> {
     (0..=n)
         .map(|i| (1.0 - lam).powi(i as i32) * (1.0 + 1.3f64.powi(i as i32)))
         .collect()
-}
-
-#[test]
-fn first_r_matches_structured_chain() {
-    for &(lam, z0, r, t) in &[
-        (0.5, 2u64, 1usize, 3usize),
-        (0.3, 3, 4, 7),
-        (0.8, 1, 0, 5),
-        (0.6, 2, 6, 13),
-    ] {
-        let w = wtr(lam, 200);
-        let seg = Segments::new(&w, lam, fixed(z0), r as u64).unwrap();
-        let chain = AttackChain::new(lam, z0, r as u64, t as u64).unwrap();
-        let expect = stationary::j_attack(&chain, &w).unwrap();
-        let got = seg.j_first_r(r, t);
-        assert!((got - expect).abs() < 1e-13 * expect, "{got} vs {expect}");
-        let mask: Vec<bool> = (0..t).map(|i| i < r).collect();
-        let via_mask = seg.j_mask(&mask).unwrap();
-        assert!((via_mask - expect).abs() < 1e-13 * expect);
-    }
 }
 
 #[test]

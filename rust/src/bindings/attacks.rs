@@ -1,43 +1,59 @@
-//! Chains, stationary laws, the offline schedule and the flag-ACK rates.
+//! For `fakeack.attacks` (and the chains of `fakeack.attack`): the attack class, the explicit
+//! chains and their stationary laws.
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
-use super::{attack_of, design, PyAttack};
-use crate::chain::{AttackChain, Csr};
-use crate::{analysis, general, stationary, Ratio};
+use super::design;
+use crate::chain::{general, stationary, AttackChain, Csr};
+use crate::Attack;
 
-#[pyfunction]
-pub(crate) fn offline_schedule<'py>(
-    py: Python<'py>,
-    p: u64,
-    q: u64,
-) -> PyResult<Bound<'py, PyArray1<i64>>> {
-    let s = crate::schedules::offline_schedule(Ratio::new(p, q)?)?;
-    Ok(s.into_iter()
-        .map(i64::from)
-        .collect::<Vec<_>>()
-        .into_pyarray(py))
+/// An attack on the flag-ACKs (wrapped by `fakeack.PeriodicBlocking` and friends).
+#[pyclass(frozen, name = "Attack", module = "fakeack._fakeack")]
+pub(crate) struct PyAttack {
+    pub(crate) inner: Attack,
 }
 
-#[pyfunction]
-pub(crate) fn high_power_rate(lam: f64, z0: u64, mu: f64) -> PyResult<f64> {
-    Ok(design(z0, mu)?.high_power_rate(lam)?)
+#[pymethods]
+impl PyAttack {
+    #[staticmethod]
+    fn periodic(r: u64, t: u64) -> PyResult<Self> {
+        Ok(PyAttack {
+            inner: Attack::periodic(r, t)?,
+        })
+    }
+
+    #[staticmethod]
+    fn mask(mask: Vec<bool>) -> PyResult<Self> {
+        Ok(PyAttack {
+            inner: Attack::mask(mask)?,
+        })
+    }
+
+    #[staticmethod]
+    fn random(beta: f64) -> PyResult<Self> {
+        Ok(PyAttack {
+            inner: Attack::random(beta)?,
+        })
+    }
+
+    #[staticmethod]
+    #[pyo3(signature = (gamma, block))]
+    fn injection(gamma: f64, block: Option<&Bound<'_, PyAttack>>) -> PyResult<Self> {
+        Ok(PyAttack {
+            inner: Attack::injection(gamma, attack_of(block))?,
+        })
+    }
+
+    fn __str__(&self) -> String {
+        self.inner.to_string()
+    }
 }
 
-/// (flag-ACKs sent, reaching the sensor, forged) per step.
-#[pyfunction]
-#[pyo3(signature = (lam, z0, mu, attack))]
-pub(crate) fn flag_rates(
-    lam: f64,
-    z0: u64,
-    mu: f64,
-    attack: Option<&Bound<'_, PyAttack>>,
-) -> PyResult<(f64, f64, f64)> {
-    let rates = analysis::flag_rates(lam, design(z0, mu)?, attack_of(attack).as_ref())?;
-    Ok((rates.sent, rates.delivered, rates.forged))
+pub(crate) fn attack_of(a: Option<&Bound<'_, PyAttack>>) -> Option<Attack> {
+    a.map(|a| a.get().inner.clone())
 }
 
 #[pyfunction]

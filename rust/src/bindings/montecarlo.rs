@@ -1,4 +1,5 @@
-//! The Monte Carlo: its arguments, the GIL-free run with Ctrl-C and progress, its results.
+//! For `fakeack.montecarlo`: the Monte Carlo, its arguments, the GIL-free run with Ctrl-C and
+//! progress, its results.
 
 use numpy::IntoPyArray;
 use pyo3::exceptions::PyValueError;
@@ -8,8 +9,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc::{channel, Receiver, RecvTimeoutError};
 use std::time::Duration;
 
-use super::system::PySystem;
-use super::{attack_of, design, PyAttack};
+use super::attacks::{attack_of, PyAttack};
+use super::design;
+use super::model::PySystem;
 use crate::{McConfig, McResult, Mode, Protocol, Ratio, Schedule};
 
 fn parse_mode(mode: &str) -> PyResult<Mode> {

@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use super::cpu::Avx2;
 use super::{CHUNK_STEPS, LANES, SLICE_BITS};
 use crate::error::{Error, Result};
-use crate::rng::Xoshiro256pp;
+use crate::montecarlo::rng::Xoshiro256pp;
 
 mod grouped;
 mod lanes4;
@@ -35,12 +35,30 @@ pub(super) struct SlicedThreshold {
 }
 
 impl SlicedThreshold {
-    /// Cuts the threshold `thr` (see [`crate::rng::bernoulli_threshold`]).
+    /// Cuts the threshold `thr` (see [`crate::montecarlo::rng::bernoulli_threshold`]).
     pub(super) fn new(thr: u64) -> Self {
         let low = 64 - SLICE_BITS;
         SlicedThreshold {
             top: thr >> low,
             rest: thr & ((1u64 << low) - 1),
+        }
+    }
+}
+
+/// Resolves the 16-bit slice ties of four lanes (all ones where the extended draw hits): the
+/// 48 lower bits of the exact threshold are compared with 48 bits of the lane's side stream.
+/// It lives with [`SlicedThreshold`] so that both four-lane operation sets share it without
+/// importing the grouped kernel that uses them.
+#[cold]
+#[inline(never)]
+fn resolve_ties4(hit: &mut [u64; 4], tie: &[u64; 4], side: &mut [Xoshiro256pp], rest: u64) {
+    for ((h, &t), s) in hit.iter_mut().zip(tie).zip(side.iter_mut()) {
+        if t != 0 {
+            *h = if (s.next_u64() >> SLICE_BITS) < rest {
+                u64::MAX
+            } else {
+                0
+            };
         }
     }
 }

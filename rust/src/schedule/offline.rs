@@ -1,80 +1,24 @@
-//! Power schedules without attack: the optimal offline schedule (Theorem 3.1, corrected as in
-//! Model note 1), the ACK-based online schedule (Theorem 4.5 of Han et al., corrected as in Model
-//! note 2) and the all-blocked cost J_max.
+//! The optimal offline schedule (Theorem 3.1, corrected as in Model note 1): its blocks, one
+//! explicit period and its cost J_offline.
 //!
-//! Every cost takes the weighted traces `w_i = a^i Tr h^i(P̄)` (a = 1 - λ), see
+//! The cost takes the weighted traces `w_i = a^i Tr h^i(P̄)` (a = 1 - λ), see
 //! [`crate::LinearSystem::weighted_traces`].
 
+use super::params::{check_lam, Ratio};
 use crate::error::{Error, Result};
-use crate::online::{check_lam, OnlineDesign};
-use crate::system::LinearSystem;
-use nalgebra::DMatrix;
-use std::fmt;
 
-/// An energy ratio p/q = (Ψ - δ)/(Δ - δ) in lowest terms, 0 < p/q < 1: the fraction of steps at
-/// high power that the budget Ψ allows (Sec. III).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub struct Ratio {
-    p: u64,
-    q: u64,
-}
-
+// The blocks are the offline schedule's reading of the budget, so this method lives with the
+// schedule rather than with `Ratio` in `params`.
 impl Ratio {
-    /// p/q, reduced to lowest terms; it must lie strictly between 0 and 1.
-    pub fn new(p: u64, q: u64) -> Result<Self> {
-        if q == 0 {
-            return Err(Error::invalid(
-                "ratio",
-                "the denominator q must be positive",
-            ));
-        }
-        if p == 0 || p >= q {
-            return Err(Error::invalid(
-                "ratio",
-                format!("the energy ratio p/q must lie in (0, 1), got {p}/{q}"),
-            ));
-        }
-        let g = gcd(p, q);
-        Ok(Ratio { p: p / g, q: q / g })
-    }
-
-    /// Numerator p (lowest terms).
-    pub fn p(&self) -> u64 {
-        self.p
-    }
-
-    /// Denominator q (lowest terms): the offline schedule's period.
-    pub fn q(&self) -> u64 {
-        self.q
-    }
-
-    /// p/q as a double.
-    pub fn value(&self) -> f64 {
-        self.p as f64 / self.q as f64
-    }
-
     /// Block structure of the optimal offline schedule (Theorem 3.1, Model note 1).
     pub fn offline_blocks(&self) -> OfflineBlocks {
-        let s0 = self.q / self.p - 1;
+        let s0 = self.q() / self.p() - 1;
         OfflineBlocks {
             s0,
-            long: self.q - self.p * (s0 + 1),
-            short: self.p * (s0 + 2) - self.q,
+            long: self.q() - self.p() * (s0 + 1),
+            short: self.p() * (s0 + 2) - self.q(),
         }
     }
-}
-
-impl fmt::Display for Ratio {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        write!(f, "{}/{}", self.p, self.q)
-    }
-}
-
-fn gcd(mut a: u64, mut b: u64) -> u64 {
-    while b != 0 {
-        (a, b) = (b, a % b);
-    }
-    a
 }
 
 /// The optimal offline schedule's blocks (Theorem 3.1 as corrected in Model note 1): `long`
@@ -151,38 +95,10 @@ pub fn j_offline(w: &[f64], lam: f64, ratio: Ratio) -> Result<f64> {
     Ok((part(long, s0 + 2) + part(short, s0 + 1)) / ratio.q() as f64)
 }
 
-/// J of the online schedule (corrected Theorem 4.5): λ / (1 - μ a^(z0+1) - (1-μ) a^(z0+2)) ·
-/// [Σ_{i≤z0} w_i + (1-μ) w_(z0+1)]. `w` must hold at least z0 + 2 weighted traces.
-pub fn j_online(w: &[f64], lam: f64, design: OnlineDesign) -> Result<f64> {
-    check_lam(lam)?;
-    design.validate()?;
-    let (z, mu) = (design.z0 as usize, design.mu);
-    if w.len() < z + 2 {
-        return Err(Error::invalid(
-            "w",
-            format!("needs {} weighted traces", z + 2),
-        ));
-    }
-    let head: f64 = w[..=z].iter().sum();
-    let tail = if mu < 1.0 { (1.0 - mu) * w[z + 1] } else { 0.0 };
-    Ok(lam * (head + tail) / design.renewal_denominator(lam))
-}
-
-/// J with every flag-ACK blocked: Σ_i λ a^i Tr h^i(P̄) = Tr X with X = a A X A' + λ P̄ + a Q
-/// (a Stein equation). `+inf` when a ρ(A)² >= 1 (Model note 5).
-pub fn j_max(sys: &LinearSystem, lam: f64) -> Result<f64> {
-    check_lam(lam)?;
-    let a = 1.0 - lam;
-    let c0: DMatrix<f64> = sys.pbar() * lam + sys.q() * a;
-    Ok(match sys.stein(a, &c0)? {
-        Some(x) => x.trace(),
-        None => f64::INFINITY,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::schedule::params::gcd;
 
     fn ratio(p: u64, q: u64) -> Ratio {
         Ratio::new(p, q).unwrap()
@@ -204,29 +120,6 @@ mod tests {
     /// z0 + 2 weighted traces are enough for J_online, z0 + 1 are not; with μ = 1 the trace
     /// at τ = z0 + 1 is never reached, so even an infinite one leaves J finite (kills the
     /// length check's `<` turned `<=`, and `mu < 1` turned `<=`, which made it 0 · inf = NaN).
-    #[test]
-    fn j_online_needs_exactly_z0_plus_two_traces() {
-        let design = OnlineDesign::new(2, 0.5).unwrap();
-        assert!(j_online(&[1.0; 4], 0.5, design).is_ok());
-        assert!(j_online(&[1.0; 3], 0.5, design).is_err());
-        let fixed = OnlineDesign::fixed(2).unwrap();
-        let j = j_online(&[1.0, 1.0, 1.0, f64::INFINITY], 0.5, fixed).unwrap();
-        // λ (1 + 1 + 1) / (1 - a³) with a = 1/2: 1.5 / 0.875.
-        assert!((j - 1.5 / 0.875).abs() < 1e-15, "{j}");
-    }
-
-    #[test]
-    fn ratio_is_reduced_and_checked() {
-        assert_eq!(ratio(2, 14), ratio(1, 7));
-        assert_eq!(ratio(2, 14).to_string(), "1/7");
-        let r = ratio(6, 21);
-        assert_eq!((r.p(), r.q(), r.value()), (2, 7, 2.0 / 7.0));
-        for (p, q) in [(0, 7), (7, 7), (8, 7), (1, 0)] {
-            let e = Ratio::new(p, q).unwrap_err();
-            assert!(e.to_string().starts_with("ratio:"), "{e}");
-        }
-    }
-
     #[test]
     fn offline_pattern_of_the_model_note() {
         // Model note 1: p/q = 1/7 gives one block of length 7.
@@ -326,15 +219,5 @@ mod tests {
         w.extend([f64::INFINITY; 3]);
         assert_eq!(ratio(1, 8).offline_blocks().long, 0);
         assert_eq!(j_offline(&w, 0.25, ratio(1, 8)).unwrap(), f64::INFINITY);
-    }
-
-    #[test]
-    fn online_with_mu_zero_is_the_longer_fixed_memory() {
-        let w: Vec<f64> = (0..10).map(|i| 0.7f64.powi(i) * (1.0 + i as f64)).collect();
-        let d0 = OnlineDesign::new(3, 0.0).unwrap();
-        let d1 = OnlineDesign::fixed(4).unwrap();
-        let j0 = j_online(&w, 0.3, d0).unwrap();
-        let j1 = j_online(&w, 0.3, d1).unwrap();
-        assert!((j0 - j1).abs() < 1e-14 * j1);
     }
 }

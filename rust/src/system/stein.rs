@@ -3,12 +3,12 @@
 //! It sums the series X = Σ_i s^i A^i C0 (A')^i, which converges iff s ρ(A)² < 1. With
 //! s = a = 1 - λ and C0 = λ P̄ + a Q its trace is the all-blocked cost
 //! J_max = Σ_i λ a^i Tr h^i(P̄) of Sec. IV-C (the sum before eq. (14)), finite iff a ρ(A)² < 1
-//! (Model note 5); see [`crate::schedules::j_max`].
+//! (Model note 5); see [`crate::LinearSystem::j_max`].
 
 use nalgebra::DMatrix;
 
 use crate::error::{Error, Result};
-use crate::linalg::frobenius_norm;
+use crate::system::linalg::frobenius_norm;
 
 /// Most doubling steps; step k adds 2^k terms of the series, so 200 is never reached when the
 /// series converges.

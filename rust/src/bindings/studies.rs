@@ -1,4 +1,5 @@
-//! Parameter studies: one block of cells of `fakeack.study_grid` ([`crate::grid`]).
+//! For `fakeack.study` and `fakeack.grid` (the studies): one block of cells of
+//! `fakeack.study_grid` ([`crate::grid`]), and the exact online designs of the cells.
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
@@ -6,10 +7,10 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
-use super::system::PySystem;
-use super::PyAttack;
-use crate::exact_design::{design_exact, Lam};
+use super::attacks::PyAttack;
+use super::model::PySystem;
 use crate::grid::{self, Cell, CellResult, Family, Study};
+use crate::schedule::exact_design::{design_exact, Lam};
 use crate::{LinearSystem, OnlineDesign, Ratio};
 
 fn family_of(name: &str) -> PyResult<Family> {
@@ -132,7 +133,7 @@ pub(crate) fn grid_cells<'py>(
 /// The memories and mixes of [`grid_designs`].
 type Designs<'py> = (Bound<'py, PyArray1<u64>>, Bound<'py, PyArray1<f64>>);
 
-/// The exact online design of each (λ, p/q) ([`crate::exact_design::design_exact`]), in
+/// The exact online design of each (λ, p/q) ([`crate::schedule::exact_design::design_exact`]), in
 /// parallel with the GIL released. λ is read as the fraction `lam_num / lam_den` (or, where
 /// `lam_den` is 0, as the float's exact binary value), as the Python package reads it. Returns
 /// `(z0, mu)` arrays, `z0 == 0` where the Python package's exact path must decide.

@@ -3,9 +3,9 @@
 
 use crate::attack::Attack;
 use crate::error::Result;
-use crate::online::{OnlineDesign, Walk};
-use crate::pattern::Segments;
-use crate::random;
+use crate::renewal::independent;
+use crate::renewal::periodic::Segments;
+use crate::schedule::{OnlineDesign, Walk};
 
 /// Flag-ACKs per step in the long run.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -41,15 +41,15 @@ pub fn flag_rates(lam: f64, design: OnlineDesign, attack: Option<&Attack>) -> Re
     let genuine = attack.map_or(Some(&no_attack), Attack::genuine_blocking);
     let (sent, genuine_delivered) = match genuine {
         None => {
-            let c = random::cycle(None, &walk, 0.0)?;
+            let c = independent::cycle(None, &walk, 0.0)?;
             (c.sent_rate(), c.sent_rate())
         }
         Some(Attack::Random { beta }) => {
-            let c = random::cycle(None, &walk, *beta)?;
+            let c = independent::cycle(None, &walk, *beta)?;
             (c.sent_rate(), (1.0 - beta) * c.sent_rate())
         }
         Some(b) if b.blocks_every_flag() => {
-            let c = random::cycle(None, &walk, 1.0)?;
+            let c = independent::cycle(None, &walk, 1.0)?;
             (c.sent_rate(), 0.0)
         }
         Some(b) => Segments::masses_only(&walk, Segments::depth(b))?.attack_flag_rates(Some(b))?,

@@ -42,10 +42,10 @@ use rayon::prelude::*;
 
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::online::{OnlineDesign, Walk};
-use crate::pattern::{self, tau_needed, Segments, MAX_SEGMENTS_MIXED};
-use crate::schedules::{self, Ratio};
-use crate::sweep;
+use crate::renewal::periodic::{self, tau_needed, Segments, MAX_SEGMENTS_MIXED};
+use crate::renewal::sweep;
+use crate::schedule::{self, Ratio};
+use crate::schedule::{OnlineDesign, Walk};
 use crate::system::LinearSystem;
 
 /// Most weighted traces a (system, λ) group shares; a cell that needs more is computed alone.
@@ -207,7 +207,7 @@ struct Shared {
     /// c^τ Tr h^τ(P̄) with the walk's c, as [`Segments::for_system`] computes them (`None`
     /// when c is bit for bit 1 - λ: then `w_cost` serves).
     w_walk: Option<Vec<f64>>,
-    /// The walk's masses c^τ ([`pattern::masses`]), as [`Segments::of_walk`] computes them.
+    /// The walk's masses c^τ ([`periodic::masses`]), as [`Segments::of_walk`] computes them.
     masses: Vec<f64>,
     j_max: f64,
 }
@@ -239,7 +239,7 @@ impl Shared {
         Some(Shared {
             w_cost,
             w_walk,
-            masses: pattern::masses(&walk, n_walk as usize + 1),
+            masses: periodic::masses(&walk, n_walk as usize + 1),
             j_max,
         })
     }
@@ -292,18 +292,18 @@ fn shared_cell(sys: &LinearSystem, cell: &Cell, study: &Study, sh: &Shared) -> R
     let (lam, ratio) = (cell.lam, cell.ratio);
     let mut out = CellResult::empty(study);
     let s0 = ratio.offline_blocks().s0 as usize;
-    out.j_offline = schedules::j_offline(&sh.w_cost[..s0 + 2], lam, ratio)?;
+    out.j_offline = schedule::j_offline(&sh.w_cost[..s0 + 2], lam, ratio)?;
     out.j_max = sh.j_max;
     let Some(design) = cell.design else {
         return Ok(out);
     };
     let z0 = design.z0 as usize;
-    out.j_online = schedules::j_online(&sh.w_cost[..z0 + 2], lam, design)?;
+    out.j_online = schedule::j_online(&sh.w_cost[..z0 + 2], lam, design)?;
     // LinearSystem::beta_bar: segments 0..t_max-1 of the walk.
     let walk = Walk::new(lam, design, 0.0)?;
     let build = |k| Segments::of_walk_with_masses(sh.walk_traces(), &sh.masses, &walk, k);
     let seg = build(0)?;
-    out.beta_bar_limit = pattern::beta_limit_threshold(&seg, lam, sh.j_max, out.j_offline);
+    out.beta_bar_limit = periodic::beta_limit_threshold(&seg, lam, sh.j_max, out.j_offline);
     // The segments up to the crossing only (the same answer as the full sweep): the finite
     // threshold is usually a little above the limit's, so the visit starts at that depth.
     let start = (out.beta_bar_limit * study.t_max as f64).ceil() as u64; // NaN: 0
@@ -313,7 +313,7 @@ fn shared_cell(sys: &LinearSystem, cell: &Cell, study: &Study, sh: &Shared) -> R
     match study.family {
         Family::Periodic => {
             for (j, &beta) in out.j_attack.iter_mut().zip(&study.betas) {
-                *j = pattern::j_limit(&seg, lam, sh.j_max, beta)?;
+                *j = periodic::j_limit(&seg, lam, sh.j_max, beta)?;
             }
         }
         Family::Random => random_family(sys, cell, design, study, &mut out)?,

@@ -2,7 +2,7 @@
 //! forging flag-ACKs, alone or beside such blocking, in closed renewal form.
 //!
 //! Between two fresh starts (an arrival, or the high-power step after a flag-ACK reached the
-//! sensor) the detector's memory walks as in [`crate::pattern`]. With independent blocking the
+//! sensor) the detector's memory walks as in [`super::periodic`]. With independent blocking the
 //! walk does not depend on any counter, so one fresh start to the next is a renewal cycle and
 //!
 //! J = Σ_τ P_τ c^τ Tr h^τ(P̄) / Σ_τ P_τ c^τ,
@@ -28,7 +28,7 @@
 //! the asymptotic one: the bound on a geometric tail, so J is exact to about 1e-16 relative.
 
 use crate::error::{Error, Result};
-use crate::online::{OnlineDesign, Walk};
+use crate::schedule::{OnlineDesign, Walk};
 use crate::system::LinearSystem;
 
 /// Relative size of the neglected tail of each sum.

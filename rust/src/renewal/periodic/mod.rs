@@ -16,7 +16,7 @@
 
 use crate::attack::{longest_cyclic_run, Attack};
 use crate::error::{Error, Result};
-use crate::online::{OnlineDesign, Walk};
+use crate::schedule::{OnlineDesign, Walk};
 use crate::system::LinearSystem;
 
 /// Largest segment index for μ < 1, where building the segments costs O(kmax²).

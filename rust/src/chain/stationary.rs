@@ -9,14 +9,14 @@
 //!   subtractions and so accurate to a few ulps; general but slower.
 //!
 //! [`j_attack`] sums the structured law against the weighted traces per segment (the renewal
-//! form of [`crate::pattern`]): O(r z0), so |S| = 10^7 and beyond costs microseconds.
+//! form of [`crate::renewal::periodic`]): O(r z0), so |S| = 10^7 and beyond costs microseconds.
 
 use std::collections::BTreeMap;
 
 use crate::chain::{AttackChain, Csr};
 use crate::error::{Error, Result};
-use crate::online::{apow, OnlineDesign};
-use crate::pattern::{tau_needed, Segments};
+use crate::renewal::periodic::{tau_needed, Segments};
+use crate::schedule::{apow, OnlineDesign};
 
 /// Largest stationary vector [`structured`] will allocate (0.8 GB of f64).
 pub const MAX_VECTOR_STATES: u128 = 100_000_000;
@@ -68,7 +68,7 @@ pub fn structured(chain: &AttackChain) -> Result<Vec<f64>> {
 
 /// J(θ̃_on) = Σ_S π(τ, σ) Tr h^τ(P̄) from the weighted traces w_τ = a^τ Tr h^τ(P̄),
 /// τ = 0..=(r+1)(z0+1): the structured law summed per segment (the renewal form of
-/// [`crate::pattern`] with μ = 1). O(r z0).
+/// [`crate::renewal::periodic`] with μ = 1). O(r z0).
 pub fn j_attack(chain: &AttackChain, w: &[f64]) -> Result<f64> {
     let seg = Segments::new(w, chain.lam, OnlineDesign::fixed(chain.z0)?, chain.r)?;
     Ok(seg.j_first_r(chain.r as usize, chain.t as usize))
@@ -259,5 +259,29 @@ mod tests {
         let c = AttackChain::new(0.4, 3, 0, 5).unwrap();
         let expect = 0.4 / (1.0 - 0.6f64.powi(4)) * w[..4].iter().sum::<f64>();
         assert!((j_attack(&c, &w).unwrap() - expect).abs() < 1e-14 * expect);
+    }
+
+    /// The renewal form's first-r and mask costs ([`Segments`]) against the structured chain.
+    #[test]
+    fn first_r_matches_structured_chain() {
+        for &(lam, z0, r, t) in &[
+            (0.5, 2u64, 1usize, 3usize),
+            (0.3, 3, 4, 7),
+            (0.8, 1, 0, 5),
+            (0.6, 2, 6, 13),
+        ] {
+            // The weighted traces of periodic's tests: a^i (1 + 1.3^i).
+            let w: Vec<f64> = (0..=200usize)
+                .map(|i| (1.0f64 - lam).powi(i as i32) * (1.0 + 1.3f64.powi(i as i32)))
+                .collect();
+            let seg = Segments::new(&w, lam, OnlineDesign::fixed(z0).unwrap(), r as u64).unwrap();
+            let chain = AttackChain::new(lam, z0, r as u64, t as u64).unwrap();
+            let expect = j_attack(&chain, &w).unwrap();
+            let got = seg.j_first_r(r, t);
+            assert!((got - expect).abs() < 1e-13 * expect, "{got} vs {expect}");
+            let mask: Vec<bool> = (0..t).map(|i| i < r).collect();
+            let via_mask = seg.j_mask(&mask).unwrap();
+            assert!((via_mask - expect).abs() < 1e-13 * expect);
+        }
     }
 }

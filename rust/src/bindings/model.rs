@@ -1,9 +1,11 @@
-//! `LinearSystem`: the system, P̄ and every cost.
+//! For `fakeack.system` and `fakeack.schedules` (the model): `LinearSystem` (the system, P̄ and
+//! every cost), the offline schedule and the online schedule's high-power rate.
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
 use pyo3::prelude::*;
 
-use super::{attack_of, design, to_dmatrix, to_numpy, PyAttack};
+use super::attacks::{attack_of, PyAttack};
+use super::{design, to_dmatrix, to_numpy};
 use crate::{system, LinearSystem, Ratio, Schedule};
 
 /// A validated system with its steady-state covariance P̄ (wrapped by `fakeack.LinearSystem`).
@@ -243,4 +245,22 @@ impl PySystem {
         let m = py.detach(|| self.inner.worst_mask(lam, d, t, blocked))?;
         Ok((m.mask, m.j, m.j_consecutive))
     }
+}
+
+#[pyfunction]
+pub(crate) fn offline_schedule<'py>(
+    py: Python<'py>,
+    p: u64,
+    q: u64,
+) -> PyResult<Bound<'py, PyArray1<i64>>> {
+    let s = crate::schedule::offline_schedule(Ratio::new(p, q)?)?;
+    Ok(s.into_iter()
+        .map(i64::from)
+        .collect::<Vec<_>>()
+        .into_pyarray(py))
+}
+
+#[pyfunction]
+pub(crate) fn high_power_rate(lam: f64, z0: u64, mu: f64) -> PyResult<f64> {
+    Ok(design(z0, mu)?.high_power_rate(lam)?)
 }

@@ -15,9 +15,9 @@
 use nalgebra::DMatrix;
 
 use crate::error::{Error, Result};
-use crate::linalg::{frobenius_norm, symmetrize};
-use crate::spectral::spectral_radius;
-use crate::stein;
+use crate::system::linalg::{frobenius_norm, symmetrize};
+use crate::system::spectral::spectral_radius;
+use crate::system::stein;
 
 /// Most defect-correction (Newton) steps after the doubling; one is usually all that helps.
 const MAX_CORRECTIONS: usize = 3;
@@ -75,7 +75,7 @@ pub(crate) fn measurement_update(
 /// Errors: [`Error::NotConverged`] if the doubling does not converge within `max_iter` steps,
 /// breaks down, or converges to a solution whose closed loop A (I - K C) is not stable (all
 /// typical of an undetectable (A, C); the caller can diagnose with
-/// [`crate::spectral::detectability_error`]).
+/// [`crate::system::spectral::detectability_error`]).
 pub fn steady_state(
     a: &DMatrix<f64>,
     c: &DMatrix<f64>,

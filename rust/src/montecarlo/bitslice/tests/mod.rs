@@ -78,7 +78,7 @@ fn bernoulli_is_the_prefix_comparison() {
 #[test]
 fn bernoulli_frequency() {
     for p in [0.3f64, 0.5, 0.9, 0.01] {
-        let thr = crate::rng::bernoulli_threshold(p);
+        let thr = crate::montecarlo::rng::bernoulli_threshold(p);
         let mut rng = Rng4::for_block(4, 1);
         let draws = 4000u32;
         let hits: u64 = (0..draws)

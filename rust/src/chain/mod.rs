@@ -2,10 +2,19 @@
 //! state order of the paper: levels σ = 0..t-1, within a level τ = 0, 1, .... Level σ ≤ r holds
 //! τ = 0..z0(σ+1); level σ > r holds τ = 0..z0. A flag-ACK is due when τ > 0 and τ mod z0 = 0;
 //! the attacker blocks it while σ < r (Model note 3: "<", not "≤").
+//!
+//! This module groups the explicit chains, one of the routes the crate cross-checks the renewal
+//! forms of [`crate::renewal`] with: the paper's chain here (and its sparse matrix [`Csr`]), the
+//! chain in full generality by exploration ([`general`]), their stationary laws ([`stationary`])
+//! and exact finite-horizon curves by propagating the state law ([`transient`]).
+
+pub mod general;
+pub mod stationary;
+pub mod transient;
 
 use crate::attack::Attack;
 use crate::error::{Error, Result};
-use crate::online::{check_lam, one_minus_apow, OnlineDesign};
+use crate::schedule::{check_lam, one_minus_apow, OnlineDesign};
 
 /// Largest chain [`AttackChain::build_csr`] will materialise (about 0.5 GB as CSR).
 pub const MAX_BUILD_STATES: u128 = 20_000_000;
@@ -72,7 +81,7 @@ impl AttackChain {
         Ok(AttackChain { lam, z0, r, t })
     }
 
-    /// c̃(j) of [`crate::stationary`]'s docs: the relative rate at which level j's walk is
+    /// c̃(j) of [`crate::chain::stationary`]'s docs: the relative rate at which level j's walk is
     /// entered at τ = 0 (1 - u after a blocked flag, 1 otherwise).
     pub fn c_tilde(&self, j: u64) -> f64 {
         if j == 0 || j > self.r {

@@ -3,15 +3,25 @@
 //! covariance P̄ (eq. (5)) and the traces Tr h^i(P̄) every cost of the crate is built from.
 //!
 //! P̄ is the positive semi-definite solution of g̃(h(X)) = X, with h(X) = A X A' + Q and
-//! g̃(X) = X - X C' (C X C' + R)^{-1} C X; [`crate::riccati`] computes it.
+//! g̃(X) = X - X C' (C X C' + R)^{-1} C X; [`riccati`] computes it.
+//!
+//! The closed-form solvers the model is built on live here with it, since nothing else needs
+//! them: [`riccati`] (P̄ by structured doubling), [`stein`] (the Stein equation behind J_max) and
+//! [`spectral`] (ρ(A) and the detectability test).
+//!
+//! Only the model's own methods of [`LinearSystem`] are here; the quantities of the analysis are
+//! its methods in the `analysis` module.
 
 use nalgebra::DMatrix;
 
 use crate::error::{Error, Result};
-use crate::linalg::symmetrize;
-use crate::riccati;
-use crate::spectral::{detectability_error, spectral_radius};
-use crate::stein;
+use linalg::symmetrize;
+use spectral::{detectability_error, spectral_radius};
+
+mod linalg;
+pub mod riccati;
+pub mod spectral;
+pub mod stein;
 
 /// Most traces a single call will compute (8 bytes each).
 pub const MAX_TRACES: u128 = 200_000_000;
@@ -164,6 +174,12 @@ impl LinearSystem {
             iterations: steady.iterations,
             spectral_radius,
         })
+    }
+
+    /// A scalar system x' = a x + w, y = c x + v with noise variances q and r (1×1 matrices).
+    pub fn scalar(a: f64, c: f64, q: f64, r: f64) -> Result<Self> {
+        let m = |x: f64| DMatrix::from_element(1, 1, x);
+        LinearSystem::new(m(a), m(c), m(q), m(r))
     }
 
     /// Relative residual ||g̃(h(X)) - X||_F / ||X||_F of the fixed-point equation of P̄

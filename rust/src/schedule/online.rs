@@ -1,36 +1,16 @@
-//! The channel and the ACK-based online schedule's parameters: λ, the memory (z0, μ), the
-//! memory walk's probabilities, the high-power rate and the design that spends a budget.
+//! The ACK-based online schedule: its memory (z0, μ), the memory walk's probabilities, the
+//! high-power rate, the design that spends a budget, its cost without attack (Theorem 4.5 of
+//! Han et al., Model note 2) and the all-blocked cost J_max.
 //!
 //! The remote detector counts losses since its last reset; after z0 of them (z0 + 1 with
 //! probability 1 - μ, Model note 2) it sends a flag-ACK and the sensor uses high power next step.
 //! With a = 1 - λ, a flag comes before the next arrival with probability
 //! u = a^z0 (μ + (1-μ) a), the same after every reset.
 
+use super::params::{apow, check_lam, one_minus_apow, Ratio};
 use crate::error::{Error, Result};
-use crate::schedules::Ratio;
-
-/// Checks `0 < lam < 1` (the low-power arrival probability λ).
-pub fn check_lam(lam: f64) -> Result<()> {
-    if lam.is_finite() && lam > 0.0 && lam < 1.0 {
-        Ok(())
-    } else {
-        Err(Error::invalid(
-            "lam",
-            format!("must lie in (0, 1), got {lam}"),
-        ))
-    }
-}
-
-/// a^k with a = 1 - lam, via exp(k ln(1 - lam)) so that tiny lam keeps its precision.
-pub fn apow(lam: f64, k: u64) -> f64 {
-    (k as f64 * (-lam).ln_1p()).exp()
-}
-
-/// 1 - a^k without cancellation: for lam below ~1e-16, 1 - lam rounds to 1 and the naive
-/// difference would be 0 (a division by zero in every cost).
-pub fn one_minus_apow(lam: f64, k: u64) -> f64 {
-    -(k as f64 * (-lam).ln_1p()).exp_m1()
-}
+use crate::system::LinearSystem;
+use nalgebra::DMatrix;
 
 /// The online schedule's memory: a flag-ACK after `z0` losses, or `z0 + 1` with probability
 /// `1 - mu` (Theorem 4.5 of Han et al., Model note 2).
@@ -252,18 +232,38 @@ pub fn design_online(lam: f64, ratio: Ratio) -> Result<OnlineDesign> {
     OnlineDesign::new(z0, mu.clamp(0.0, 1.0))
 }
 
+/// J of the online schedule (corrected Theorem 4.5): λ / (1 - μ a^(z0+1) - (1-μ) a^(z0+2)) ·
+/// [Σ_{i≤z0} w_i + (1-μ) w_(z0+1)]. `w` must hold at least z0 + 2 weighted traces.
+pub fn j_online(w: &[f64], lam: f64, design: OnlineDesign) -> Result<f64> {
+    check_lam(lam)?;
+    design.validate()?;
+    let (z, mu) = (design.z0 as usize, design.mu);
+    if w.len() < z + 2 {
+        return Err(Error::invalid(
+            "w",
+            format!("needs {} weighted traces", z + 2),
+        ));
+    }
+    let head: f64 = w[..=z].iter().sum();
+    let tail = if mu < 1.0 { (1.0 - mu) * w[z + 1] } else { 0.0 };
+    Ok(lam * (head + tail) / design.renewal_denominator(lam))
+}
+
+/// J with every flag-ACK blocked: Σ_i λ a^i Tr h^i(P̄) = Tr X with X = a A X A' + λ P̄ + a Q
+/// (a Stein equation). `+inf` when a ρ(A)² >= 1 (Model note 5).
+pub fn j_max(sys: &LinearSystem, lam: f64) -> Result<f64> {
+    check_lam(lam)?;
+    let a = 1.0 - lam;
+    let c0: DMatrix<f64> = sys.pbar() * lam + sys.q() * a;
+    Ok(match sys.stein(a, &c0)? {
+        Some(x) => x.trace(),
+        None => f64::INFINITY,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn lam_is_checked() {
-        for bad in [0.0, 1.0, -0.1, f64::NAN, f64::INFINITY] {
-            let e = check_lam(bad).unwrap_err();
-            assert!(e.to_string().starts_with("lam:"), "{e}");
-        }
-        assert!(check_lam(1e-300).is_ok());
-    }
 
     #[test]
     fn walk_without_forging_is_the_plain_memory_walk() {
@@ -365,5 +365,26 @@ mod tests {
         }
         let e = design_online(0.5, Ratio::new(1, 2).unwrap()).unwrap_err();
         assert!(e.to_string().starts_with("ratio:"), "{e}");
+    }
+
+    #[test]
+    fn j_online_needs_exactly_z0_plus_two_traces() {
+        let design = OnlineDesign::new(2, 0.5).unwrap();
+        assert!(j_online(&[1.0; 4], 0.5, design).is_ok());
+        assert!(j_online(&[1.0; 3], 0.5, design).is_err());
+        let fixed = OnlineDesign::fixed(2).unwrap();
+        let j = j_online(&[1.0, 1.0, 1.0, f64::INFINITY], 0.5, fixed).unwrap();
+        // λ (1 + 1 + 1) / (1 - a³) with a = 1/2: 1.5 / 0.875.
+        assert!((j - 1.5 / 0.875).abs() < 1e-15, "{j}");
+    }
+
+    #[test]
+    fn online_with_mu_zero_is_the_longer_fixed_memory() {
+        let w: Vec<f64> = (0..10).map(|i| 0.7f64.powi(i) * (1.0 + i as f64)).collect();
+        let d0 = OnlineDesign::new(3, 0.0).unwrap();
+        let d1 = OnlineDesign::fixed(4).unwrap();
+        let j0 = j_online(&w, 0.3, d0).unwrap();
+        let j1 = j_online(&w, 0.3, d1).unwrap();
+        assert!((j0 - j1).abs() < 1e-14 * j1);
     }
 }

@@ -1,14 +1,14 @@
 //! The attack chain in full generality, built by exploration: states (τ, z, σ) with z the zeros
 //! in the detector's memory since its last reset, any memory mix μ and any periodic blocking
-//! mask. It shares no formula with [`crate::pattern`], so it is the independent check of the
-//! structured costs, solved by [`crate::stationary::gth`].
+//! mask. It shares no formula with [`crate::renewal::periodic`], so it is the independent check
+//! of the structured costs, solved by [`crate::chain::stationary::gth`].
 
 use std::collections::HashMap;
 
 use crate::attack::Attack;
 use crate::chain::Csr;
 use crate::error::{Error, Result};
-use crate::online::{check_lam, OnlineDesign};
+use crate::schedule::{check_lam, OnlineDesign};
 
 /// Largest chain [`general_attack_chain`] explores (hashing makes it slower per state than the (τ, σ) chain).
 pub const MAX_GENERAL_STATES: u128 = 5_000_000;
@@ -191,8 +191,8 @@ fn explore(
 mod tests {
     use super::*;
     use crate::attack::longest_cyclic_run;
-    use crate::pattern::{tau_needed, Segments};
-    use crate::stationary::gth;
+    use crate::chain::stationary::gth;
+    use crate::renewal::periodic::{tau_needed, Segments};
 
     fn tr(i: u64) -> f64 {
         1.0 + 0.5 * i as f64 + 1.25f64.powi(i as i32)
