@@ -4,19 +4,25 @@ from __future__ import annotations
 
 import sys
 import time
+from typing import TYPE_CHECKING, NoReturn
+
+if TYPE_CHECKING:
+    from tqdm import tqdm as Bar
 
 
 class Progress:
     """A tqdm bar that appears only if a run lasts longer than a second."""
 
-    def __init__(self, total: int, enabled: bool | None):
-        self.total, self.bar, self.start = total, None, time.monotonic()
+    def __init__(self, total: int, enabled: bool | None) -> None:
+        self.total, self.start = total, time.monotonic()
+        self.bar: Bar[NoReturn] | None = None  # a bar over no iterable
         self.enabled = sys.stderr.isatty() if enabled is None else bool(enabled)
 
     def __call__(self, done: int) -> None:
         if not self.enabled:
             return
-        if self.bar is None:
+        bar = self.bar
+        if bar is None:
             if time.monotonic() - self.start < 1.0:
                 return
             try:
@@ -24,8 +30,9 @@ class Progress:
             except ImportError:  # the bar is optional (pip install fakeack[progress])
                 self.enabled = False
                 return
-            self.bar = tqdm(total=self.total, unit="run", desc="fakeack simulate")
-        self.bar.update(done - self.bar.n)
+            bar = tqdm(total=self.total, unit="run", desc="fakeack simulate")
+            self.bar = bar
+        bar.update(done - bar.n)
 
     def close(self) -> None:
         if self.bar is not None:

@@ -9,9 +9,10 @@ from __future__ import annotations
 import math
 import numbers
 from fractions import Fraction
-from typing import Any
 
 import numpy as np
+
+from .types import FloatArray
 
 __all__ = [
     "MODES",
@@ -25,7 +26,6 @@ __all__ = [
 ]
 
 
-
 #: Monte Carlo fidelities: average Tr P_k ("covariance") or simulate the noise and the errors ("state").
 MODES = ("covariance", "state")
 
@@ -33,11 +33,11 @@ MODES = ("covariance", "state")
 PROTOCOLS = ("B", "A")
 
 
-def _is_bool(x: Any) -> bool:
+def _is_bool(x: object) -> bool:
     return isinstance(x, (bool, np.bool_))
 
 
-def as_real(name: str, x: Any) -> float:
+def as_real(name: str, x: object) -> float:
     """A finite real number as ``float``."""
     if _is_bool(x) or not isinstance(x, (numbers.Real, np.floating, np.integer)):
         raise TypeError(f"{name} must be a real number, got {type(x).__name__}")
@@ -47,7 +47,7 @@ def as_real(name: str, x: Any) -> float:
     return v
 
 
-def as_probability(name: str, x: Any, *, closed: bool = False) -> float:
+def as_probability(name: str, x: object, *, closed: bool = False) -> float:
     """A number in (0, 1), or in [0, 1] when ``closed``."""
     v = as_real(name, x)
     ok = (0.0 <= v <= 1.0) if closed else (0.0 < v < 1.0)
@@ -61,7 +61,7 @@ def as_probability(name: str, x: Any, *, closed: bool = False) -> float:
 MAX_INT = 2**62
 
 
-def as_int(name: str, x: Any, *, minimum: int | None = None, maximum: int = MAX_INT) -> int:
+def as_int(name: str, x: object, *, minimum: int | None = None, maximum: int = MAX_INT) -> int:
     """An integer (int, numpy integer, or an integral float/Fraction) in [minimum, maximum]."""
     if _is_bool(x):
         raise TypeError(f"{name} must be an integer, got bool")
@@ -83,7 +83,7 @@ def as_int(name: str, x: Any, *, minimum: int | None = None, maximum: int = MAX_
     return v
 
 
-def as_fraction(name: str, x: Any) -> Fraction:
+def as_fraction(name: str, x: object) -> Fraction:
     """An exact rational.
 
     Integers and Fractions are exact. A float is taken as the simplest fraction with denominator up
@@ -108,7 +108,7 @@ def as_fraction(name: str, x: Any) -> Fraction:
     raise TypeError(f"{name} must be a rational number, got {type(x).__name__}")
 
 
-def as_ratio(name: str, x: Any) -> Fraction:
+def as_ratio(name: str, x: object) -> Fraction:
     """An energy ratio p/q strictly between 0 and 1."""
     v = as_fraction(name, x)
     if not 0 < v < 1:
@@ -118,7 +118,7 @@ def as_ratio(name: str, x: Any) -> Fraction:
     return v
 
 
-def as_matrix(name: str, x: Any, *, shape: tuple[int, int] | None = None) -> np.ndarray:
+def as_matrix(name: str, x: object, *, shape: tuple[int, int] | None = None) -> FloatArray:
     """A finite real 2-D float64 array (a scalar becomes 1x1), C-contiguous and owned."""
     if _is_bool(x) or x is None or isinstance(x, (str, bytes)):
         raise TypeError(f"{name} must be a real scalar or 2-D array, got {type(x).__name__}")
@@ -147,7 +147,5 @@ def as_matrix(name: str, x: Any, *, shape: tuple[int, int] | None = None) -> np.
     if not np.all(np.isfinite(out)):
         raise ValueError(f"{name} contains NaN or inf")
     if shape is not None and out.shape != shape:
-        raise ValueError(
-            f"Incompatible dimensions of {name} matrix; expected {shape} but found {out.shape}"
-        )
+        raise ValueError(f"Incompatible dimensions of {name} matrix; expected {shape} but found {out.shape}")
     return out

@@ -2,15 +2,15 @@
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 
 from .. import _fakeack
+from .._internal.types import FloatArray, IntArray
 from .._internal.validate import as_int, as_probability
-from ..model.system import compiled
-from .kinds import MaskBlocking, PeriodicBlocking, attack_argument, core_attack
+from ..model.system import LinearSystem, compiled
+from .kinds import AttackLike, MaskBlocking, PeriodicBlocking, attack_argument, core_attack
 
 __all__ = [
     "num_states",
@@ -23,14 +23,13 @@ __all__ = [
 ]
 
 
-
-def _check(lam: Any, z0: Any, r: Any, t: Any) -> tuple[float, int, int, int]:
+def _check(lam: float, z0: int, r: int, t: int) -> tuple[float, int, int, int]:
     lam, z0 = as_probability("lam", lam), as_int("z0", z0, minimum=1)
     att = PeriodicBlocking(r, t)
     return lam, z0, att.r, att.t
 
 
-def num_states(z0: Any, r: Any, t: Any) -> int:
+def num_states(z0: int, r: int, t: int) -> int:
     r"""Number of chain states :math:`|\mathcal S| = \tfrac12 r(r+1)z_0 + t(z_0+1)` (Sec. IV-B).
 
     Parameters
@@ -44,7 +43,7 @@ def num_states(z0: Any, r: Any, t: Any) -> int:
     return int(_fakeack.num_states(z0, r, t))
 
 
-def attack_chain(lam: Any, z0: Any, r: Any, t: Any) -> tuple[np.ndarray, sp.csr_array]:
+def attack_chain(lam: float, z0: int, r: int, t: int) -> tuple[IntArray, sp.csr_array]:
     r"""The Markov chain :math:`S_k = (\tau_k, \sigma_k)` under the fake-ACK attack (Sec. IV-B).
 
     States follow the paper's order (level :math:`\sigma = 0..t-1`; in level :math:`\sigma \le r`,
@@ -83,9 +82,7 @@ def attack_chain(lam: Any, z0: Any, r: Any, t: Any) -> tuple[np.ndarray, sp.csr_
     return states, sp.csr_array((data, indices, indptr), shape=(n, n))
 
 
-def stationary_distribution(
-    lam: Any, z0: Any, r: Any, t: Any, *, method: str = "structured"
-) -> np.ndarray:
+def stationary_distribution(lam: float, z0: int, r: int, t: int, *, method: str = "structured") -> FloatArray:
     r"""Stationary law :math:`\Pi^\star` of the attack chain, aligned with :func:`attack_chain`.
 
     Solves :math:`\mathcal T_s \Pi = \Pi`, :math:`\sum\Pi = 1` (eq. (13)).
@@ -116,7 +113,7 @@ def stationary_distribution(
     raise ValueError(f"method must be 'structured' or 'gth', got {method!r}")
 
 
-def balance_residual(lam: Any, z0: Any, r: Any, t: Any, pi: Any) -> float:
+def balance_residual(lam: float, z0: int, r: int, t: int, pi: npt.ArrayLike) -> float:
     r""":math:`\|\Pi' T - \Pi'\|_1` of a candidate stationary law, applying rules 1)-4) on the fly.
 
     Parameters
@@ -139,14 +136,14 @@ def balance_residual(lam: Any, z0: Any, r: Any, t: Any, pi: Any) -> float:
 
 
 def j_attack(
-    system: Any,
-    lam: Any,
-    z0: Any,
-    r: Any = None,
-    t: Any = None,
-    mu: Any = 1.0,
+    system: LinearSystem,
+    lam: float,
+    z0: int,
+    r: int | AttackLike = None,
+    t: int | None = None,
+    mu: float = 1.0,
     *,
-    attack: Any = None,
+    attack: AttackLike = None,
 ) -> float:
     r"""Cost :math:`J(\tilde\theta_{\mathrm{on}})` under a fake-ACK attack (Sec. IV-B, eq. (14)).
 
@@ -210,8 +207,8 @@ def j_attack(
 
 
 def general_attack_chain(
-    lam: Any, z0: Any, mask: Any, mu: Any = 1.0
-) -> tuple[np.ndarray, sp.csr_array]:
+    lam: float, z0: int, mask: npt.ArrayLike | PeriodicBlocking | MaskBlocking, mu: float = 1.0
+) -> tuple[IntArray, sp.csr_array]:
     r"""The attack chain in full generality: any memory mix :math:`\mu` and any blocking mask.
 
     States are :math:`(\tau, z, \sigma)`: holding time, zeros in the detector's memory since its
@@ -248,7 +245,7 @@ def general_attack_chain(
     return states, sp.csr_array((data, indices, indptr), shape=(n, n))
 
 
-def stationary_gth(T: Any) -> np.ndarray:
+def stationary_gth(T: npt.ArrayLike | sp.sparray | sp.spmatrix) -> FloatArray:
     """Stationary law of any irreducible row-stochastic sparse or dense matrix.
 
     Grassmann-Taksar-Heyman state reduction: no subtractions, so every entry is accurate to a few
@@ -269,7 +266,7 @@ def stationary_gth(T: Any) -> np.ndarray:
     .. [1] W. K. Grassmann, M. I. Taksar, D. P. Heyman, "Regenerative analysis and steady state
        distributions for Markov chains", Operations Research 33(5), 1985.
     """
-    M = sp.csr_array(T)
+    M = sp.csr_array(T)  # type: ignore[arg-type]  # scipy reads any array_like; its stubs take arrays
     if M.ndim != 2 or M.shape[0] != M.shape[1] or M.shape[0] == 0:
         raise ValueError(f"T must be a non-empty square matrix, got shape {M.shape}")
     M.sum_duplicates()
@@ -280,6 +277,4 @@ def stationary_gth(T: Any) -> np.ndarray:
     rows = np.asarray(M.sum(axis=1)).ravel()
     if np.max(np.abs(rows - 1.0)) > 1e-10:
         raise ValueError("T must be row-stochastic (rows summing to 1)")
-    return _fakeack.stationary_gth(
-        M.indptr.astype(np.int64), M.indices.astype(np.int64), data
-    )
+    return _fakeack.stationary_gth(M.indptr.astype(np.int64), M.indices.astype(np.int64), data)

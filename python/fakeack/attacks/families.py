@@ -5,15 +5,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
+from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_probability, as_ratio, as_real
-from ..model.schedules import design_online
-from ..model.system import compiled
+from ..model.schedules import OnlineDesign, design_online
+from ..model.system import LinearSystem, compiled
 from .chain import j_attack
-from .kinds import FlagInjection, RandomBlocking
+from .kinds import Attack, FlagInjection, RandomBlocking
 from .random import beta_bar_random, random_blocking_sweep, rate_matching_attack
 from .rates import energy_per_step
 from .threshold import j_attack_limit
@@ -26,22 +27,21 @@ __all__ = [
 ]
 
 
-
 @dataclass(frozen=True)
 class AttackFamilies:
     """J and energy per step against the budget β for each family (see :func:`attack_families`)."""
 
-    beta: np.ndarray
+    beta: FloatArray
     """The budgets."""
-    j_periodic: np.ndarray
+    j_periodic: FloatArray
     """Periodic blocking, large-period worst case :math:`J_\\infty(\\beta)`."""
-    j_random: np.ndarray
+    j_random: FloatArray
     """Independent blocking with probability β."""
-    j_rate_matching: np.ndarray
+    j_rate_matching: FloatArray
     """Independent blocking hidden by forged flags (:func:`fakeack.rate_matching_attack`)."""
-    energy_periodic: np.ndarray
-    energy_random: np.ndarray
-    energy_rate_matching: np.ndarray
+    energy_periodic: FloatArray
+    energy_random: FloatArray
+    energy_rate_matching: FloatArray
     j_offline: float
     j_online: float
     psi: float
@@ -49,7 +49,12 @@ class AttackFamilies:
 
 
 def attack_families(
-    system: Any, lam: Any, ratio: Any, Delta: Any, delta: Any, betas: Any = None
+    system: LinearSystem,
+    lam: float,
+    ratio: RatioLike,
+    Delta: float,
+    delta: float,
+    betas: npt.ArrayLike | None = None,
 ) -> AttackFamilies:
     r"""J and energy per step of the three attack families at each budget β.
 
@@ -75,28 +80,36 @@ def attack_families(
     core = compiled(system)
     lam_f, r = as_probability("lam", lam), as_ratio("ratio", ratio)
     hi, lo = as_real("Delta", Delta), as_real("delta", delta)
-    z0, mu = design_online(lam, r)
+    design = design_online(lam, r)
+    z0, mu = design
     b = np.linspace(0.0, 1.0, 101) if betas is None else np.asarray(betas, dtype=np.float64)
     j_per = np.array([j_attack_limit(system, lam_f, z0, x, mu) for x in b])
     j_rand = random_blocking_sweep(system, lam_f, z0, b, mu).j_attack
     matching = [rate_matching_attack(lam_f, z0, x, mu) for x in b]
     j_match = np.array([j_attack(system, lam_f, z0, mu=mu, attack=a) for a in matching])
-    f_on, f_blk = (_core_rates(lam_f, z0, mu))
+    f_on, f_blk = _core_rates(lam_f, design)
     per_rate = np.array([_periodic_rate(x, f_on, f_blk) for x in b])
     e_per = lo + (hi - lo) * per_rate
     e_rand = np.array([energy_per_step(lam_f, z0, hi, lo, RandomBlocking(x), mu) for x in b])
     e_match = np.array([energy_per_step(lam_f, z0, hi, lo, a, mu) for a in matching])
     return AttackFamilies(
-        b, j_per, j_rand, j_match, e_per, e_rand, e_match,
-        core.j_offline(lam_f, r.numerator, r.denominator), core.j_online(lam_f, z0, mu),
+        b,
+        j_per,
+        j_rand,
+        j_match,
+        e_per,
+        e_rand,
+        e_match,
+        core.j_offline(lam_f, r.numerator, r.denominator),
+        core.j_online(lam_f, z0, mu),
         energy_per_step(lam_f, z0, hi, lo, None, mu),
     )
 
 
-def _core_rates(lam: float, z0: int, mu: float) -> tuple[float, float]:
+def _core_rates(lam: float, design: OnlineDesign) -> tuple[float, float]:
     from ..detection.flags import regime_rates
 
-    return regime_rates(lam, z0, mu)
+    return regime_rates(lam, design)
 
 
 def _periodic_rate(beta: float, f_on: float, f_blk: float) -> float:
@@ -116,7 +129,7 @@ class OtherAttackRow:
 
 
 def other_attacks_table(
-    system: Any, lam: Any, ratio: Any, Delta: Any, delta: Any
+    system: LinearSystem, lam: float, ratio: RatioLike, Delta: float, delta: float
 ) -> tuple[list[OtherAttackRow], float]:
     """J and energy per step under the other attacks at the paper's budgets, and the threshold
     against independent blocking (:func:`fakeack.beta_bar_random`).
@@ -134,7 +147,7 @@ def other_attacks_table(
     """
     lam_f, r = as_probability("lam", lam), as_ratio("ratio", ratio)
     z0, mu = design_online(lam, r)
-    attacks = [
+    attacks: list[tuple[str, Attack]] = [
         ("random blocking beta=1/5", RandomBlocking(0.2)),
         ("random blocking beta=2/3", RandomBlocking(2 / 3)),
         ("injection gamma=0.1", FlagInjection(0.1)),

@@ -7,9 +7,10 @@ import re
 import warnings
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import TypeAlias, cast, overload
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _fakeack
 from .._internal.validate import as_fraction, as_int
@@ -23,9 +24,9 @@ __all__ = [
     "RandomBlocking",
     "FlagInjection",
     "Attack",
+    "AttackLike",
     "as_attack",
 ]
-
 
 
 class AttackPattern:
@@ -36,7 +37,7 @@ class AttackPattern:
     returns ``PeriodicBlocking(r, t)``, with a ``DeprecationWarning``.
     """
 
-    def __new__(cls, mask: Any) -> MaskBlocking:  # type: ignore[misc]
+    def __new__(cls, mask: npt.ArrayLike) -> MaskBlocking:  # type: ignore[misc]  # a deprecated alias: it returns another class
         warnings.warn(
             "fakeack.AttackPattern is deprecated; use fakeack.MaskBlocking(mask)",
             DeprecationWarning,
@@ -45,7 +46,7 @@ class AttackPattern:
         return MaskBlocking(mask)
 
     @staticmethod
-    def first(r: Any, t: Any) -> PeriodicBlocking:
+    def first(r: int, t: int) -> PeriodicBlocking:
         """Block the first r of every t flag-ACKs: ``fakeack.PeriodicBlocking(r, t)``."""
         warnings.warn(
             "fakeack.AttackPattern.first is deprecated; use fakeack.PeriodicBlocking(r, t)",
@@ -54,11 +55,12 @@ class AttackPattern:
         )
         return PeriodicBlocking(r, t)
 
+
 #: Longest blocking mask (in flag-ACKs per period) accepted.
 MAX_MASK = 10_000_000
 
 
-def as_mask(mask: Any) -> list[bool]:
+def as_mask(mask: npt.ArrayLike) -> list[bool]:
     """A non-empty 1-D 0/1 (or bool) blocking mask as a list of bools."""
     if isinstance(mask, (str, bytes)) or mask is None:
         raise TypeError(f"mask must be a sequence of 0/1, got {type(mask).__name__}")
@@ -101,7 +103,7 @@ class PeriodicBlocking:
     r: int
     t: int
 
-    def __init__(self, r: Any, t: Any):
+    def __init__(self, r: int, t: int) -> None:
         # No cap on t: the analysis of this attack costs O(r z0) whatever t is.
         t = as_int("t", t, minimum=1)
         r = as_int("r", r, minimum=0)
@@ -152,7 +154,7 @@ class MaskBlocking:
 
     mask: tuple[bool, ...]
 
-    def __init__(self, mask: Any):
+    def __init__(self, mask: npt.ArrayLike) -> None:
         object.__setattr__(self, "mask", tuple(as_mask(mask)))
 
     @property
@@ -176,7 +178,7 @@ class MaskBlocking:
         return f"block mask {self.label}"
 
 
-def _probability(name: str, x: Any) -> float:
+def _probability(name: str, x: object) -> float:
     if isinstance(x, (bool, np.bool_)) or not isinstance(x, (int, float, Fraction, np.integer, np.floating)):
         raise TypeError(f"{name} must be a number in [0, 1], got {type(x).__name__}")
     v = float(x)
@@ -195,7 +197,7 @@ class RandomBlocking:
 
     Parameters
     ----------
-    beta : float
+    beta : float or Fraction
         Probability of blocking each flag-ACK, in [0, 1].
 
     Examples
@@ -208,7 +210,7 @@ class RandomBlocking:
 
     beta: float
 
-    def __init__(self, beta: Any):
+    def __init__(self, beta: float | Fraction) -> None:
         object.__setattr__(self, "beta", _probability("beta", beta))
 
     @property
@@ -231,7 +233,7 @@ class FlagInjection:
 
     Parameters
     ----------
-    gamma : float
+    gamma : float or Fraction
         Probability of a forged flag-ACK on a step without a genuine one, in [0, 1].
     block : RandomBlocking, PeriodicBlocking, MaskBlocking or None, optional
         The attack on the genuine flag-ACKs (default none).
@@ -247,7 +249,9 @@ class FlagInjection:
     gamma: float
     block: PeriodicBlocking | MaskBlocking | RandomBlocking | None = None
 
-    def __init__(self, gamma: Any, block: Any = None):
+    def __init__(
+        self, gamma: float | Fraction, block: PeriodicBlocking | MaskBlocking | RandomBlocking | None = None
+    ) -> None:
         object.__setattr__(self, "gamma", _probability("gamma", gamma))
         if block is not None and not isinstance(block, (PeriodicBlocking, MaskBlocking, RandomBlocking)):
             raise TypeError(
@@ -273,7 +277,11 @@ class FlagInjection:
 
 
 #: Every attack type (for annotations).
-Attack = PeriodicBlocking | MaskBlocking | RandomBlocking | FlagInjection
+Attack: TypeAlias = PeriodicBlocking | MaskBlocking | RandomBlocking | FlagInjection
+
+#: What :func:`as_attack` reads: no attack, an attack, an ``(r, t)`` pair, a spelling such as
+#: ``"1/5"`` or ``"inject:0.1+random:0.3"``, or a periodic budget (an int 0, a Fraction, a float).
+AttackLike: TypeAlias = Attack | tuple[int, int] | str | Fraction | float | None
 
 _RT = re.compile(r"^\s*(\d+)\s*/\s*(\d+)\s*$")
 
@@ -289,7 +297,7 @@ def _periodic_from_text(value: str, name: str) -> PeriodicBlocking:
     return _periodic(f.numerator, f.denominator, value, name)
 
 
-def _periodic(r: int, t: int, value: Any, name: str) -> PeriodicBlocking:
+def _periodic(r: int, t: int, value: object, name: str) -> PeriodicBlocking:
     if t < 1:
         raise ValueError(f"{name}: the period t must be at least 1, got {value!r}")
     if not 0 <= r < t:
@@ -304,7 +312,7 @@ def _attack_from_text(value: str, name: str) -> Attack:
     text = value.strip()
     head, plus, rest = text.partition("+")
     if head.startswith("inject:"):
-        gamma = _number_text(head[len("inject:"):], name)
+        gamma = _number_text(head[len("inject:") :], name)
         block = _attack_from_text(rest, name) if plus else None
         if isinstance(block, FlagInjection):
             raise ValueError(f"{name}: an injection's blocking part cannot inject, got {value!r}")
@@ -312,7 +320,7 @@ def _attack_from_text(value: str, name: str) -> Attack:
     if plus:
         raise ValueError(f"{name}: only 'inject:gamma+...' combines attacks, got {value!r}")
     if text.startswith("random:"):
-        return RandomBlocking(_number_text(text[len("random:"):], name))
+        return RandomBlocking(_number_text(text[len("random:") :], name))
     return _periodic_from_text(text, name)
 
 
@@ -323,7 +331,7 @@ def _number_text(text: str, name: str) -> float:
         raise ValueError(f"{name}: cannot read {text!r} as a probability") from None
 
 
-def as_attack(value: Any, name: str = "attack") -> Attack | None:
+def as_attack(value: AttackLike, name: str = "attack") -> Attack | None:
     """Any accepted way of writing an attack, as an attack object (``None``: no attack).
 
     Parameters
@@ -341,7 +349,7 @@ def as_attack(value: Any, name: str = "attack") -> Attack | None:
 
     Returns
     -------
-    PeriodicBlocking, MaskBlocking or None
+    PeriodicBlocking, MaskBlocking, RandomBlocking, FlagInjection or None
 
     Raises
     ------
@@ -372,7 +380,13 @@ def as_attack(value: Any, name: str = "attack") -> Attack | None:
     return _periodic(f.numerator, f.denominator, value, name)
 
 
-def core_attack(attack: Attack | None) -> Any:
+@overload
+def core_attack(attack: Attack) -> _fakeack.Attack: ...
+@overload
+def core_attack(attack: None) -> None: ...
+@overload
+def core_attack(attack: Attack | None) -> _fakeack.Attack | None: ...
+def core_attack(attack: Attack | None) -> _fakeack.Attack | None:
     """The compiled core's form of a validated attack object (``None`` stays ``None``)."""
     if attack is None:
         return None
@@ -385,7 +399,7 @@ def core_attack(attack: Attack | None) -> Any:
     return _fakeack.Attack.mask(list(attack.mask))
 
 
-def attack_argument(r: Any, t: Any, attack: Any) -> Attack:
+def attack_argument(r: int | AttackLike, t: int | None, attack: AttackLike) -> Attack:
     """The attack of a call that takes either ``r, t`` or ``attack=`` (or an attack object as r)."""
     if attack is None and t is None and r is not None and not isinstance(r, (int, np.integer)):
         attack, r = r, None
@@ -398,4 +412,5 @@ def attack_argument(r: Any, t: Any, attack: Any) -> Attack:
         return got
     if r is None or t is None:
         raise TypeError("missing the attack: give r and t, or attack=fakeack.PeriodicBlocking(r, t)")
-    return PeriodicBlocking(r, t)
+    # PeriodicBlocking checks r at run time (a pair or a string in r's place is a TypeError there).
+    return PeriodicBlocking(cast(int, r), t)

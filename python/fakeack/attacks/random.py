@@ -4,15 +4,17 @@ sensor in estimation error and in energy."""
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
+from fractions import Fraction
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import brentq
 
 from .. import _fakeack
+from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_fraction, as_probability
 from ..model.schedules import check_online
-from ..model.system import compiled
+from ..model.system import LinearSystem, compiled
 from .kinds import FlagInjection, RandomBlocking
 from .threshold import _problem
 
@@ -24,8 +26,9 @@ __all__ = [
 ]
 
 
-
-def beta_bar_random(system: Any, lam: Any, ratio: Any, z0: Any = None, mu: Any = None) -> float:
+def beta_bar_random(
+    system: LinearSystem, lam: float, ratio: RatioLike, z0: int | None = None, mu: float | None = None
+) -> float:
     r"""The threshold against independent blocking: the root of
     :math:`J(\mathrm{RandomBlocking}(\beta)) = J_{\mathrm{off}}`.
 
@@ -51,16 +54,16 @@ def beta_bar_random(system: Any, lam: Any, ratio: Any, z0: Any = None, mu: Any =
     """
     core = compiled(system)
     pb = _problem(lam, ratio, z0, mu)
-    return core.beta_bar_random(pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.z0, pb.mu)
+    return core.beta_bar_random(pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.design.z0, pb.design.mu)
 
 
 @dataclass(frozen=True)
 class RandomSweep:
     """J under independent blocking at each β (see :func:`random_blocking_sweep`)."""
 
-    beta: np.ndarray
+    beta: FloatArray
     """The budgets."""
-    j_attack: np.ndarray
+    j_attack: FloatArray
     """J at each budget (``inf`` past the growth condition)."""
     gamma: float
     """The forging probability of the sweep (0: blocking alone)."""
@@ -70,7 +73,7 @@ class RandomSweep:
 
 
 def random_blocking_sweep(
-    system: Any, lam: Any, z0: Any, betas: Any, mu: Any = 1.0, gamma: Any = 0.0
+    system: LinearSystem, lam: float, z0: int, betas: npt.ArrayLike, mu: float = 1.0, gamma: float = 0.0
 ) -> RandomSweep:
     r"""J under :class:`fakeack.RandomBlocking` at many budgets, sharing the traces.
 
@@ -94,18 +97,18 @@ def random_blocking_sweep(
         :class:`fakeack.RandomBlocking` block).
     """
     core = compiled(system)
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
     g = as_probability("gamma", gamma, closed=True)
     b = np.asarray(betas, dtype=np.float64)
     if b.ndim != 1 or b.size == 0:
         raise ValueError(f"betas must be a non-empty 1-D array, got shape {b.shape}")
     if not np.all(np.isfinite(b)) or np.any((b < 0) | (b > 1)):
         raise ValueError("betas must lie in [0, 1]")
-    j = core.j_random_sweep(lam, z0, mu, g, b.tolist())
-    return RandomSweep(b, j, g, z0, mu, lam)
+    j = core.j_random_sweep(lam, design.z0, design.mu, g, b.tolist())
+    return RandomSweep(b, j, g, design.z0, design.mu, lam)
 
 
-def rate_matching_attack(lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> FlagInjection:
+def rate_matching_attack(lam: float, z0: int, beta: float | Fraction, mu: float = 1.0) -> FlagInjection:
     r"""The injection that hides independent blocking from the flag count.
 
     Returns ``FlagInjection(gamma, block=RandomBlocking(beta))`` whose long-run rate of flag-ACKs
@@ -131,7 +134,8 @@ def rate_matching_attack(lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> FlagInj
     >>> abs(high_power_rate(0.5, 2, att) - high_power_rate(0.5, 2)) < 1e-12
     True
     """
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
+    z0, mu = design
     b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
     target = _fakeack.high_power_rate(lam, z0, mu)
     block = RandomBlocking(b)

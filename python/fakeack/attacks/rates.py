@@ -3,12 +3,10 @@ sensor in estimation error and in energy."""
 
 from __future__ import annotations
 
-from typing import Any
-
 from .. import _fakeack
 from .._internal.validate import as_real
-from ..model.schedules import check_online
-from .kinds import as_attack, core_attack
+from ..model.schedules import OnlineDesign, check_online
+from .kinds import Attack, AttackLike, as_attack, core_attack
 
 __all__ = [
     "high_power_rate",
@@ -17,7 +15,7 @@ __all__ = [
 ]
 
 
-def high_power_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
+def high_power_rate(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) -> float:
     r"""Long-run fraction of steps at high power under an attack (exact).
 
     The sensor uses high power after every flag-ACK that reaches it, genuine or forged, so this is
@@ -51,14 +49,18 @@ def high_power_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> flo
     >>> high_power_rate(0.5, 2, FlagInjection(1.0))
     1.0
     """
-    lam, z0, mu = check_online(lam, z0, mu)
-    att = as_attack(attack)
-    if att is None:
-        return _fakeack.high_power_rate(lam, z0, mu)
-    return _fakeack.flag_rates(lam, z0, mu, core_attack(att))[1]
+    lam, design = check_online(lam, z0, mu)
+    return design_high_power_rate(lam, design, as_attack(attack))
 
 
-def online_high_power_rate(lam: Any, z0: Any, mu: Any = 1.0) -> float:
+def design_high_power_rate(lam: float, design: OnlineDesign, attack: Attack | None) -> float:
+    """:func:`high_power_rate` of a validated schedule and attack."""
+    if attack is None:
+        return _fakeack.high_power_rate(lam, design.z0, design.mu)
+    return _fakeack.flag_rates(lam, design.z0, design.mu, core_attack(attack))[1]
+
+
+def online_high_power_rate(lam: float, z0: int, mu: float = 1.0) -> float:
     r"""Long-run fraction of steps at high power under :math:`\theta_{\mathrm{on}}` without attack
     (Model note 2): :func:`high_power_rate` with ``attack=None``.
 
@@ -82,7 +84,7 @@ def online_high_power_rate(lam: Any, z0: Any, mu: Any = 1.0) -> float:
 
 
 def energy_per_step(
-    lam: Any, z0: Any, Delta: Any, delta: Any, attack: Any = None, mu: Any = 1.0
+    lam: float, z0: int, Delta: float, delta: float, attack: AttackLike = None, mu: float = 1.0
 ) -> float:
     r"""Long-run energy per step: :math:`\delta + (\Delta - \delta)\,f`, f the high-power rate.
 

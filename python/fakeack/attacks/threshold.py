@@ -4,13 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
+from .._internal.types import FloatArray, IntArray, RatioLike
 from .._internal.validate import as_fraction, as_int, as_probability, as_ratio
-from ..model.schedules import design_online
-from ..model.system import compiled
+from ..model.schedules import OnlineDesign, design_online
+from ..model.system import LinearSystem, compiled
 from .chain import j_attack
 from .kinds import MaskBlocking
 
@@ -28,12 +29,13 @@ __all__ = [
 ]
 
 
-
-def _t_max(t_max: Any) -> int:
+def _t_max(t_max: int) -> int:
     return as_int("t_max", t_max, minimum=2)
 
 
-def j_attack_pattern(system: Any, lam: Any, z0: Any, mask: Any, mu: Any = 1.0) -> float:
+def j_attack_pattern(
+    system: LinearSystem, lam: float, z0: int, mask: npt.ArrayLike, mu: float = 1.0
+) -> float:
     r"""Cost under any periodic blocking pattern of the attacker's flag counter.
 
     Generalises Algorithm 1: ``mask[sigma] == 1`` blocks the flag-ACK counted ``sigma`` in each
@@ -63,7 +65,9 @@ def j_attack_pattern(system: Any, lam: Any, z0: Any, mask: Any, mu: Any = 1.0) -
     return j_attack(system, lam, z0, mu=mu, attack=MaskBlocking(mask))
 
 
-def j_attack_limit(system: Any, lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> float:
+def j_attack_limit(
+    system: LinearSystem, lam: float, z0: int, beta: float | Fraction, mu: float = 1.0
+) -> float:
     r"""Cost in the large-period limit :math:`r, t \to \infty`, :math:`r/t \to \beta`.
 
     The attacker blocks long runs of flags; the process alternates between the all-blocked regime
@@ -108,13 +112,13 @@ def j_attack_limit(system: Any, lam: Any, z0: Any, beta: Any, mu: Any = 1.0) -> 
 class BetaSweep:
     """:math:`J(\\tilde\\theta_{on})` at every β = r/t in lowest terms, t <= t_max, sorted by β."""
 
-    r: np.ndarray
+    r: npt.NDArray[np.uint32]
     """Blocked flag-ACKs per period (uint32)."""
-    t: np.ndarray
+    t: npt.NDArray[np.uint32]
     """Period in flag-ACKs (uint32)."""
-    beta: np.ndarray
+    beta: FloatArray
     """r / t."""
-    j_attack: np.ndarray
+    j_attack: FloatArray
     """Attacked cost at each fraction (``inf``, never NaN, where it exceeds the double range)."""
     j_offline: float
     """Cost of the optimal offline schedule at the same energy."""
@@ -161,26 +165,30 @@ class _Problem:
 
     lam: float
     ratio: Fraction
-    z0: int
-    mu: float
+    design: OnlineDesign
 
 
-def _problem(lam: Any, ratio: Any, z0: Any, mu: Any) -> _Problem:
+def _problem(lam: float | Fraction, ratio: RatioLike, z0: int | None, mu: float | None) -> _Problem:
     """lam and ratio, with the online design given (z0, optional mu) or by design_online."""
     lam_f = as_probability("lam", lam)
     r = as_ratio("ratio", ratio)
     if z0 is None:
         if mu is not None:
             raise TypeError("mu: give z0 with mu (or neither, for fakeack.design_online's design)")
-        z, m = design_online(lam, r)
+        design = design_online(lam, r)
     else:
-        z = as_int("z0", z0, minimum=1)
-        m = 1.0 if mu is None else as_probability("mu", mu, closed=True)
-    return _Problem(lam_f, r, z, m)
+        design = OnlineDesign(z0, 1.0 if mu is None else mu)
+    return _Problem(lam_f, r, design)
 
 
 def beta_sweep(
-    system: Any, lam: Any, ratio: Any, t_max: Any = 1000, *, z0: Any = None, mu: Any = None
+    system: LinearSystem,
+    lam: float,
+    ratio: RatioLike,
+    t_max: int = 1000,
+    *,
+    z0: int | None = None,
+    mu: float | None = None,
 ) -> BetaSweep:
     r"""The attacked cost at every :math:`\beta = r/t` in lowest terms, :math:`1 \le r < t \le t_{\max}`.
 
@@ -212,10 +220,11 @@ def beta_sweep(
     core = compiled(system)
     pb = _problem(lam, ratio, z0, mu)
     t_max = _t_max(t_max)
-    rr, tt, beta, j = core.beta_sweep(pb.lam, pb.z0, pb.mu, t_max)
+    z0, mu = pb.design
+    rr, tt, beta, j = core.beta_sweep(pb.lam, z0, mu, t_max)
     joff = core.j_offline(pb.lam, pb.ratio.numerator, pb.ratio.denominator)
-    jon = core.j_online(pb.lam, pb.z0, pb.mu)
-    return BetaSweep(rr, tt, beta, j, joff, jon, pb.z0, pb.mu, pb.lam, pb.ratio)
+    jon = core.j_online(pb.lam, z0, mu)
+    return BetaSweep(rr, tt, beta, j, joff, jon, z0, mu, pb.lam, pb.ratio)
 
 
 @dataclass(frozen=True)
@@ -252,7 +261,13 @@ class BetaBar:
 
 
 def beta_bar(
-    system: Any, lam: Any, ratio: Any, t_max: Any = 60, *, z0: Any = None, mu: Any = None
+    system: LinearSystem,
+    lam: float,
+    ratio: RatioLike,
+    t_max: int = 60,
+    *,
+    z0: int | None = None,
+    mu: float | None = None,
 ) -> BetaBar:
     r"""The threshold :math:`\bar\beta` above which the sensor should drop ACKs (Sec. IV-C).
 
@@ -288,11 +303,12 @@ def beta_bar(
     core = compiled(system)
     pb = _problem(lam, ratio, z0, mu)
     t_max = _t_max(t_max)
+    z0, mu = pb.design
     first, limit, joff, jon, jmax = core.beta_bar(
-        pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.z0, pb.mu, t_max
+        pb.lam, pb.ratio.numerator, pb.ratio.denominator, z0, mu, t_max
     )
     finite = None if first is None else Fraction(first[0], first[1])
-    return BetaBar(finite, limit, t_max, joff, jon, jmax, pb.z0, pb.mu)
+    return BetaBar(finite, limit, t_max, joff, jon, jmax, z0, mu)
 
 
 @dataclass(frozen=True)
@@ -313,7 +329,13 @@ class Decision:
 
 
 def choose_schedule(
-    system: Any, lam: Any, ratio: Any, beta: Any, *, z0: Any = None, mu: Any = None
+    system: LinearSystem,
+    lam: float,
+    ratio: RatioLike,
+    beta: float | Fraction,
+    *,
+    z0: int | None = None,
+    mu: float | None = None,
 ) -> Decision:
     r"""Keep the online schedule or switch to the offline one (Sec. IV-C's rule).
 
@@ -343,17 +365,18 @@ def choose_schedule(
     core = compiled(system)
     pb = _problem(lam, ratio, z0, mu)
     b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
+    z0, mu = pb.design
     online, bb, jatt, joff, jon = core.choose_schedule(
-        pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.z0, pb.mu, b
+        pb.lam, pb.ratio.numerator, pb.ratio.denominator, z0, mu, b
     )
-    return Decision("online" if online else "offline", b, bb, jatt, joff, jon, pb.z0, pb.mu)
+    return Decision("online" if online else "offline", b, bb, jatt, joff, jon, z0, mu)
 
 
 @dataclass(frozen=True)
 class MaskSearch:
     """Result of :func:`worst_mask`."""
 
-    mask: np.ndarray
+    mask: IntArray
     """The most damaging blocking pattern found (0/1, length t)."""
     j: float
     j_consecutive: float
@@ -361,7 +384,9 @@ class MaskSearch:
     consecutive_is_worst: bool
 
 
-def worst_mask(system: Any, lam: Any, z0: Any, t: Any, blocked: Any, mu: Any = 1.0) -> MaskSearch:
+def worst_mask(
+    system: LinearSystem, lam: float, z0: int, t: int, blocked: int, mu: float = 1.0
+) -> MaskSearch:
     """Exhaustive search for the most damaging mask with ``blocked`` of ``t`` flags blocked.
 
     Tests whether blocking consecutively, the paper's choice after the optimal-DoS result it cites,

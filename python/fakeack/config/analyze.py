@@ -17,6 +17,7 @@ example (:func:`example_text`), which is the paper's system of Sec. V::
 from __future__ import annotations
 
 import difflib
+import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from fractions import Fraction
@@ -47,13 +48,13 @@ from .values import (
     toml_kind,
 )
 
-try:  # Python 3.11+
+if sys.version_info >= (3, 11):
     import tomllib as _toml
-except ModuleNotFoundError:  # pragma: no cover - Python 3.10 with the tomli backport
+else:  # pragma: no cover - Python 3.10 with the tomli backport
     try:
-        import tomli as _toml  # type: ignore[no-redef]
+        import tomli as _toml
     except ModuleNotFoundError:
-        _toml = None  # type: ignore[assignment]
+        _toml = None  # type: ignore[assignment]  # no TOML reader: the config functions say so
 
 __all__ = [
     "Config",

@@ -21,7 +21,10 @@ References
 from __future__ import annotations
 
 import numpy as np
+import numpy.typing as npt
 from scipy.special import ndtr
+
+from .._internal.types import FloatArray
 
 __all__ = [
     "canonical",
@@ -32,46 +35,48 @@ __all__ = [
 _REL_EIG = 1e-12
 
 
-def canonical(S: np.ndarray, mu: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def canonical(S: npt.ArrayLike, mu: npt.ArrayLike) -> tuple[FloatArray, FloatArray, float]:
     """(λ, b, δ) of y'y for y ~ N(mu, S): positive eigenvalues, non-centralities, offset."""
-    S = 0.5 * (np.asarray(S, dtype=np.float64) + np.asarray(S, dtype=np.float64).T)
-    mu = np.asarray(mu, dtype=np.float64)
-    vals, vecs = np.linalg.eigh(S)
+    S_arr = 0.5 * (np.asarray(S, dtype=np.float64) + np.asarray(S, dtype=np.float64).T)
+    mu_arr = np.asarray(mu, dtype=np.float64)
+    vals, vecs = np.linalg.eigh(S_arr)
     top = vals.max(initial=0.0)
     keep = vals > _REL_EIG * top if top > 0 else np.zeros(len(vals), dtype=bool)
-    proj = vecs.T @ mu
+    proj = vecs.T @ mu_arr
     lam = vals[keep]
     b = proj[keep] / np.sqrt(lam)
-    delta = max(float(mu @ mu - proj[keep] @ proj[keep]), 0.0)
+    delta = max(float(mu_arr @ mu_arr - proj[keep] @ proj[keep]), 0.0)
     return lam, b, delta
 
 
-def tail(lam: np.ndarray, b: np.ndarray, delta: np.ndarray, x: np.ndarray) -> np.ndarray:
+def tail(lam: npt.ArrayLike, b: npt.ArrayLike, delta: npt.ArrayLike, x: npt.ArrayLike) -> FloatArray:
     """P(Σ_j lam_j (Z_j + b_j)² + delta > x), row by row (saddlepoint, Lugannani-Rice).
 
     ``lam`` and ``b`` have shape (rows, k) (zero weights pad short rows), ``delta`` and ``x``
     shape (rows,). A row with no positive weight is the constant ``delta``.
     """
-    lam = np.atleast_2d(np.asarray(lam, dtype=np.float64))
+    lam_a = np.atleast_2d(np.asarray(lam, dtype=np.float64))
     b2 = np.atleast_2d(np.asarray(b, dtype=np.float64)) ** 2
-    delta = np.broadcast_to(np.asarray(delta, dtype=np.float64), lam.shape[:1]).copy()
-    x = np.broadcast_to(np.asarray(x, dtype=np.float64), lam.shape[:1]).copy()
-    out = np.empty(lam.shape[0])
-    top = lam.max(axis=1)
+    delta_a = np.broadcast_to(np.asarray(delta, dtype=np.float64), lam_a.shape[:1]).copy()
+    x_a = np.broadcast_to(np.asarray(x, dtype=np.float64), lam_a.shape[:1]).copy()
+    out = np.empty(lam_a.shape[0])
+    top = lam_a.max(axis=1)
     constant = top <= 0.0
-    out[constant] = (delta[constant] > x[constant]).astype(float)
-    below = ~constant & (x <= delta)
+    out[constant] = (delta_a[constant] > x_a[constant]).astype(float)
+    below = ~constant & (x_a <= delta_a)
     out[below] = 1.0
     go = ~constant & ~below
     if np.any(go):
-        out[go] = _saddlepoint(lam[go], b2[go], delta[go], x[go], top[go])
+        out[go] = _saddlepoint(lam_a[go], b2[go], delta_a[go], x_a[go], top[go])
     return np.clip(out, 0.0, 1.0)
 
 
-def _saddlepoint(lam, b2, delta, x, top):
+def _saddlepoint(
+    lam: FloatArray, b2: FloatArray, delta: FloatArray, x: FloatArray, top: FloatArray
+) -> FloatArray:
     r = lam / top[:, None]  # in [0, 1]
 
-    def terms(s, rows):
+    def terms(s: FloatArray, rows: npt.NDArray[np.intp]) -> tuple[FloatArray, FloatArray]:
         # 1 - 2 λ_j t with t = (1 - e^s) / (2 max λ), written without cancellation.
         e = np.exp(s)[:, None]
         d = (1.0 - r[rows]) + r[rows] * e
@@ -125,4 +130,5 @@ def _saddlepoint(lam, b2, delta, x, top):
     mid_value = 0.5 - kappa3 / (6 * np.sqrt(2 * np.pi) * kappa2**1.5)
     # w is about (x - mean) / sd near the mean.
     near = (np.abs(w) < 1e-4) | ~np.isfinite(lr)
-    return np.where(near, mid_value, lr)
+    out: FloatArray = np.where(near, mid_value, lr)
+    return out

@@ -17,12 +17,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
 
 from scipy.special import ndtr
 
 from .._internal.validate import as_int, as_probability, as_real
-from ..model.schedules import check_online
+from ..model.schedules import OnlineDesign, check_online
 from .flags import estimate_beta, flag_interval_moments, regime_rates
 
 __all__ = [
@@ -37,11 +36,11 @@ __all__ = [
 ALTERNATIVES = ("less", "greater", "two-sided")
 
 
-def check_alternative(alternative: Any) -> str:
+def check_alternative(alternative: object) -> str:
     """A valid ``alternative`` of the count test."""
     if alternative not in ALTERNATIVES:
         raise ValueError(f"alternative must be one of {ALTERNATIVES}, got {alternative!r}")
-    return alternative
+    return str(alternative)
 
 
 def count_p_value(z: float, alternative: str) -> float:
@@ -63,7 +62,7 @@ def count_z(delivered: int, n: int, m: float, v: float) -> float:
 
 
 def count_alarm_bounds(
-    lam: Any, z0: Any, n_steps: Any, alpha: Any, alternative: str = "less", mu: Any = 1.0
+    lam: float, z0: int, n_steps: int, alpha: float, alternative: str = "less", mu: float = 1.0
 ) -> tuple[int, int]:
     """The count test's alarm region as integers: alarm iff N <= lo or N >= hi.
 
@@ -71,12 +70,15 @@ def count_alarm_bounds(
     is the one :func:`fakeack.detect_attack` uses, found by evaluating its p-value at the
     boundary counts (so the two agree exactly).
     """
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1)
-    alpha = as_probability("alpha", alpha)
-    alternative = check_alternative(alternative)
-    count_law(n, lam, z0, mu)  # ValueError naming z0 when flags are too rare to test
-    m, v = flag_interval_moments(lam, z0, mu)
+    return alarm_bounds(lam, design, n, as_probability("alpha", alpha), check_alternative(alternative))
+
+
+def alarm_bounds(lam: float, design: OnlineDesign, n: int, alpha: float, alternative: str) -> tuple[int, int]:
+    """:func:`count_alarm_bounds` of a validated schedule, window, level and alternative."""
+    count_law(n, lam, design)  # ValueError naming z0 when flags are too rare to test
+    m, v = flag_interval_moments(lam, design.z0, design.mu)
 
     def alarm(d: int, side: str) -> bool:
         z = count_z(d, n, m, v)
@@ -108,16 +110,20 @@ def count_alarm_bounds(
     return lo, hi
 
 
-def harmful_count_bound(lam: Any, z0: Any, n_steps: Any, beta_bar: Any, mu: Any = 1.0) -> int:
+def harmful_count_bound(lam: float, z0: int, n_steps: int, beta_bar: float, mu: float = 1.0) -> int:
     """Largest count N whose estimated budget (:func:`fakeack.estimate_beta`) exceeds ``beta_bar``.
 
     The estimate decreases with N, so "estimated budget above β̄" is N <= this bound
     (-1 when no count qualifies).
     """
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1)
-    bb = as_real("beta_bar", beta_bar)
-    f_on, f_blk = regime_rates(lam, z0, mu)
+    return harmful_bound(lam, design, n, as_real("beta_bar", beta_bar))
+
+
+def harmful_bound(lam: float, design: OnlineDesign, n: int, bb: float) -> int:
+    """:func:`harmful_count_bound` of a validated schedule, window and threshold."""
+    f_on, f_blk = regime_rates(lam, design)
 
     def beta_hat(d: int) -> float:  # fakeack.estimate_beta's formula
         rho = d / n
@@ -137,14 +143,14 @@ def harmful_count_bound(lam: Any, z0: Any, n_steps: Any, beta_bar: Any, mu: Any 
     return a
 
 
-def count_law(n: int, lam: float, z0: int, mu: float) -> tuple[float, float]:
+def count_law(n: int, lam: float, design: OnlineDesign) -> tuple[float, float]:
     """Mean n/m and standard deviation sqrt(n v / m^3) of the attack-free flag count in n steps
     (renewal CLT); ValueError when the interval moments exceed the double range."""
-    m, v = flag_interval_moments(lam, z0, mu)
+    m, v = flag_interval_moments(lam, design.z0, design.mu)
     if not (math.isfinite(m) and math.isfinite(v)):
         raise ValueError(
             f"z0: flag-ACKs are too rare to test (interval moments beyond the double range at "
-            f"lam={lam}, z0={z0})"
+            f"lam={lam}, z0={design.z0})"
         )
     return n / m, math.sqrt(n / m) * math.sqrt(v) / m  # m**3 alone may overflow
 
@@ -168,12 +174,12 @@ class Detection:
 
 
 def detect_attack(
-    delivered: Any,
-    n_steps: Any,
-    lam: Any,
-    z0: Any,
-    mu: Any = 1.0,
-    alpha: Any = 0.01,
+    delivered: int,
+    n_steps: int,
+    lam: float,
+    z0: int,
+    mu: float = 1.0,
+    alpha: float = 0.01,
     alternative: str = "less",
 ) -> Detection:
     r"""Test for a fake-ACK attacker from the count of flag-ACKs received in ``n_steps`` steps.
@@ -201,14 +207,14 @@ def detect_attack(
         Which counts are alarms: too few (blocking; default), too many (forging), or either.
     """
 
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1)
     d = as_int("delivered", delivered, minimum=0)
     alpha = as_probability("alpha", alpha)
     alternative = check_alternative(alternative)
-    expected, _ = count_law(n, lam, z0, mu)  # ValueError when flags are too rare to test
-    m, v = flag_interval_moments(lam, z0, mu)
+    expected, _ = count_law(n, lam, design)  # ValueError when flags are too rare to test
+    m, v = flag_interval_moments(lam, design.z0, design.mu)
     z = count_z(d, n, m, v)
     p = count_p_value(z, alternative)
-    beta = estimate_beta(d, n, lam, z0, mu)
+    beta = estimate_beta(d, n, lam, design.z0, design.mu)
     return Detection(p < alpha, z, p, beta, d, expected, n, alpha, alternative)

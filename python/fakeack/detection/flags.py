@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
 from .. import _fakeack
 from .._internal.validate import as_int
-from ..attacks.kinds import as_attack, core_attack
+from ..attacks.kinds import AttackLike, as_attack, core_attack
 from ..attacks.rates import high_power_rate
-from ..model.schedules import check_online
+from ..model.schedules import OnlineDesign, check_online
 from ..model.system import LinearSystem
 
 __all__ = [
@@ -34,7 +34,7 @@ def any_system() -> LinearSystem:
     return _ANY_SYSTEM
 
 
-def flag_interval_moments(lam: Any, z0: Any, mu: Any = 1.0) -> tuple[float, float]:
+def flag_interval_moments(lam: float, z0: int, mu: float = 1.0) -> tuple[float, float]:
     r"""Mean and variance of the steps between delivered flag-ACKs without attack.
 
     After a flag-ACK the sensor transmits at high power (the packet arrives and the detector's
@@ -58,7 +58,7 @@ def flag_interval_moments(lam: Any, z0: Any, mu: Any = 1.0) -> tuple[float, floa
     (mean, variance) : tuple of float
         ``inf`` where a moment exceeds the double range (memories of hundreds of steps).
     """
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, (z0, mu) = check_online(lam, z0, mu)
     if z0 > 10_000:
         raise ValueError(f"z0 must be at most 10000 here, got {z0}")
     a = 1.0 - lam
@@ -96,7 +96,7 @@ class FlagRates(NamedTuple):
     """Forged flag-ACKs (part of ``delivered``)."""
 
 
-def flag_rates(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> FlagRates:
+def flag_rates(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) -> FlagRates:
     r"""Long-run flag-ACKs per step: sent by the detector, reaching the sensor, forged (exact).
 
     Under a periodic attack each level of the attacker's counter is left at the same rate
@@ -130,11 +130,11 @@ def flag_rates(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> FlagRate
     >>> round(sent, 12) == round(delivered, 12) == round(1 / 7, 12) and forged == 0
     True
     """
-    lam, z0, mu = check_online(lam, z0, mu)
-    return FlagRates(*_fakeack.flag_rates(lam, z0, mu, core_attack(as_attack(attack))))
+    lam, design = check_online(lam, z0, mu)
+    return FlagRates(*_fakeack.flag_rates(lam, design.z0, design.mu, core_attack(as_attack(attack))))
 
 
-def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> float:
+def delivered_flag_rate(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) -> float:
     r"""Long-run flag-ACKs reaching the sensor per step under an attack (exact).
 
     Genuine and forged flags count alike: the sensor cannot tell them apart, and each makes it use
@@ -154,14 +154,15 @@ def delivered_flag_rate(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) ->
     return high_power_rate(lam, z0, attack, mu)
 
 
-def regime_rates(lam: float, z0: int, mu: float) -> tuple[float, float]:
+def regime_rates(lam: float, design: OnlineDesign) -> tuple[float, float]:
     """(f_on, f_blk): flags per step unattacked and with every flag blocked."""
+    z0, mu = design
     f_on = _fakeack.flag_rates(lam, z0, mu, None)[0]
     f_blk = _fakeack.flag_rates(lam, z0, mu, _fakeack.Attack.mask([True]))[0]
     return f_on, f_blk
 
 
-def estimate_beta(delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
+def estimate_beta(delivered: int, n_steps: int, lam: float, z0: int, mu: float = 1.0) -> float:
     r"""Estimate the attacker's budget β from the delivered flag-ACK rate.
 
     In the large-period model (the attacker blocks long runs), a fraction β of flags falls in the
@@ -187,16 +188,16 @@ def estimate_beta(delivered: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
     """
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1)
     d = as_int("delivered", delivered, minimum=0)
     if d > n:
         raise ValueError(f"delivered must not exceed n_steps = {n}, got {d}")
-    f_on, f_blk = regime_rates(lam, z0, mu)
+    f_on, f_blk = regime_rates(lam, design)
     if not f_on > 0.0:
         raise ValueError(
             f"z0: flag-ACKs are too rare to estimate beta (attack-free rate {f_on:.3g} per step "
-            f"at lam={lam}, z0={z0})"
+            f"at lam={lam}, z0={design.z0})"
         )
     rho = d / n
     if rho >= f_on:  # at least the attack-free rate (the formula's denominator can vanish here)

@@ -16,15 +16,16 @@ detection_probability part is the next to move to a module of its own.)
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 from scipy.optimize import brentq
 
+from .._internal.types import FloatArray, IntArray
 from .._internal.validate import as_int, as_probability
-from ..model.schedules import check_online
+from ..model.schedules import OnlineDesign, check_online
 from . import _quadform
-from .intervals import walk
+from .intervals import design_walk
 
 __all__ = [
     "IntervalTest",
@@ -36,8 +37,7 @@ __all__ = [
 #: Smallest expected count per bin of the interval test.
 MIN_EXPECTED = 5.0
 
-_TESTS: dict[tuple, IntervalTest] = {}
-
+_TESTS: dict[tuple[float, OnlineDesign, int, float], IntervalTest] = {}
 
 
 @dataclass(frozen=True)
@@ -45,11 +45,11 @@ class IntervalTest:
     """The interval test for windows of ``n_steps`` steps at level ``alpha`` (see
     :func:`interval_test`)."""
 
-    edges: np.ndarray
+    edges: IntArray
     """Lower edges of the bins of gap lengths (steps); the last bin is open above."""
-    expected: np.ndarray
+    expected: FloatArray
     """Attack-free expected number of delivered flag-ACKs per bin in a window (n p_i / m)."""
-    weights: np.ndarray
+    weights: FloatArray
     """Eigenvalues λ_j of the statistic's attack-free law Σ λ_j χ²_1."""
     critical: float
     """Alarm when the statistic exceeds this value."""
@@ -59,7 +59,12 @@ class IntervalTest:
     z0: int
     mu: float
 
-    def counts(self, gaps: Any) -> np.ndarray:
+    @property
+    def design(self) -> OnlineDesign:
+        """The online schedule ``(z0, mu)`` the test is for."""
+        return OnlineDesign(self.z0, self.mu)
+
+    def counts(self, gaps: npt.ArrayLike) -> FloatArray:
         """Observed flag-ACKs per bin, from the gap before each one (steps since the previous)."""
         g = np.asarray(gaps)
         if g.ndim != 1:
@@ -72,7 +77,7 @@ class IntervalTest:
         idx = np.searchsorted(self.edges, g, side="right") - 1
         return np.bincount(idx, minlength=len(self.edges)).astype(float)
 
-    def statistic(self, gaps: Any) -> float:
+    def statistic(self, gaps: npt.ArrayLike) -> float:
         """Pearson's statistic Σ_i (O_i - E_i)² / E_i of a window's gaps."""
         o = self.counts(gaps)
         return float(np.sum((o - self.expected) ** 2 / self.expected))
@@ -83,7 +88,7 @@ class IntervalTest:
         return float(_quadform.tail(w, np.zeros_like(w), 0.0, float(statistic))[0])
 
 
-def _bins(pmf: np.ndarray, scale: float) -> np.ndarray:
+def _bins(pmf: FloatArray, scale: float) -> IntArray:
     """Lower edges of bins of consecutive gap lengths with expected counts >= MIN_EXPECTED."""
     edges = [1]
     acc = 0.0
@@ -99,9 +104,9 @@ def _bins(pmf: np.ndarray, scale: float) -> np.ndarray:
     return np.array(edges, dtype=np.int64)
 
 
-def _null(lam: float, z0: int, mu: float, n: int) -> tuple[np.ndarray, np.ndarray, float, np.ndarray]:
+def _null(lam: float, design: OnlineDesign, n: int) -> tuple[IntArray, FloatArray, float, FloatArray]:
     """Bins, attack-free Palm bin probabilities, mean gap and bin-count covariance per step."""
-    w0 = walk(lam, z0, None, mu)
+    w0 = design_walk(lam, design)
     x = 64
     while True:
         pmf = w0.pmf(x)[:, 0, 0]
@@ -113,7 +118,7 @@ def _null(lam: float, z0: int, mu: float, n: int) -> tuple[np.ndarray, np.ndarra
     return edges, p0, w0.mean, sigma0
 
 
-def interval_test(lam: Any, z0: Any, n_steps: Any, alpha: Any = 0.01, mu: Any = 1.0) -> IntervalTest:
+def interval_test(lam: float, z0: int, n_steps: int, alpha: float = 0.01, mu: float = 1.0) -> IntervalTest:
     r"""The interval test for windows of ``n_steps`` steps: bins, expected counts, critical value.
 
     **The statistic.** The gaps between flag-ACKs reaching the sensor are binned by length, bins
@@ -157,17 +162,18 @@ def interval_test(lam: Any, z0: Any, n_steps: Any, alpha: Any = 0.01, mu: Any = 
     -------
     IntervalTest
     """
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
     alpha = as_probability("alpha", alpha)
-    return cached_interval_test(lam, z0, mu, n, alpha)
+    return cached_interval_test(lam, design, n, alpha)
 
 
-def cached_interval_test(lam: float, z0: int, mu: float, n: int, alpha: float) -> IntervalTest:
-    key = (lam, z0, mu, n, alpha)
+def cached_interval_test(lam: float, design: OnlineDesign, n: int, alpha: float) -> IntervalTest:
+    """:func:`interval_test` of validated arguments, kept for reuse."""
+    key = (lam, design, n, alpha)
     if key in _TESTS:
         return _TESTS[key]
-    edges, p0, m0, sigma0 = _null(lam, z0, mu, n)
+    edges, p0, m0, sigma0 = _null(lam, design, n)
     scale = np.sqrt(p0 / m0)
     M0 = sigma0 / np.outer(scale, scale)
     weights = np.clip(np.linalg.eigvalsh(0.5 * (M0 + M0.T)), 0.0, None)
@@ -180,7 +186,7 @@ def cached_interval_test(lam: float, z0: int, mu: float, n: int, alpha: float) -
     while excess(hi) > 0:
         hi *= 2.0
     crit = brentq(excess, 0.0, hi, xtol=1e-10, rtol=1e-12)
-    test = IntervalTest(edges, n * p0 / m0, weights, crit, alpha, n, lam, z0, mu)
+    test = IntervalTest(edges, n * p0 / m0, weights, crit, alpha, n, lam, design.z0, design.mu)
     if len(_TESTS) > 256:
         _TESTS.clear()
     _TESTS[key] = test
@@ -197,18 +203,18 @@ class IntervalDetection:
     p_value: float
     """P[X² at least this large | no attacker] (weighted chi-square law, saddlepoint tail)."""
     critical: float
-    observed: np.ndarray
+    observed: FloatArray
     """Flag-ACKs per bin."""
-    expected: np.ndarray
+    expected: FloatArray
     """Attack-free expectation per bin."""
-    edges: np.ndarray
+    edges: IntArray
     """Lower edges of the bins (gap lengths in steps)."""
     n_steps: int
     alpha: float
 
 
 def detect_intervals(
-    gaps: Any, n_steps: Any, lam: Any, z0: Any, mu: Any = 1.0, alpha: Any = 0.01
+    gaps: npt.ArrayLike, n_steps: int, lam: float, z0: int, mu: float = 1.0, alpha: float = 0.01
 ) -> IntervalDetection:
     r"""Test for a fake-ACK attacker from *when* flag-ACKs arrived in a window of ``n_steps`` steps.
 

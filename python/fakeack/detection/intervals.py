@@ -24,15 +24,23 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from .._internal.types import FloatArray, IntArray
 from .._internal.validate import as_int
-from ..attacks.kinds import FlagInjection, MaskBlocking, PeriodicBlocking, RandomBlocking, as_attack
-from ..model.schedules import check_online
+from ..attacks.kinds import (
+    Attack,
+    AttackLike,
+    FlagInjection,
+    MaskBlocking,
+    PeriodicBlocking,
+    RandomBlocking,
+    as_attack,
+)
+from ..model.schedules import OnlineDesign, check_online
 
 __all__ = [
     "IntervalLaw",
@@ -49,7 +57,7 @@ MAX_WALK_STATES = 200_000
 MAX_WALK_ENTRIES = 20_000_000
 
 
-def _blocking(attack: Any) -> tuple[list[float], float]:
+def _blocking(attack: Attack | None) -> tuple[list[float], float]:
     """(block probability per counter value, forging probability γ) of a validated attack."""
     if attack is None:
         return [0.0], 0.0
@@ -73,7 +81,8 @@ class _Walk:
     ``mean_x[σ, σ']`` = E[X; next = σ' | σ] and ``second_x`` likewise for X².
     """
 
-    def __init__(self, lam: float, z0: int, mu: float, attack: Any):
+    def __init__(self, lam: float, design: OnlineDesign, attack: Attack | None) -> None:
+        z0, mu = design
         block, gamma = _blocking(attack)
         t = len(block)
         width = z0 + 2
@@ -114,9 +123,10 @@ class _Walk:
         # Row vectors e_σ' N^k for the start states, by transposed solves.
         e = np.zeros((n, t))
         e[self.starts, np.arange(t)] = 1.0
-        r1 = lu.solve(e, trans="T")
-        r2 = lu.solve(r1, trans="T")
-        r3 = lu.solve(r2, trans="T")
+        # scipy-stubs' SuperLU.solve lacks scipy's `trans` argument.
+        r1 = lu.solve(e, trans="T")  # type: ignore[call-overload]
+        r2 = lu.solve(r1, trans="T")  # type: ignore[call-overload]
+        r3 = lu.solve(r2, trans="T")  # type: ignore[call-overload]
         self.kernel = r1.T @ absorb  # P(next = σ' | σ)
         self.mean_x = r2.T @ absorb  # E[X; next = σ' | σ]
         # e' (I + Q) N^3 A; Q and N commute, so it is e' N^3 (I + Q) A.
@@ -128,7 +138,7 @@ class _Walk:
         self._rows = np.zeros((t, n))  # e' Q^(x-1) for the start states, x = pmf length + 1
         self._rows[np.arange(t), self.starts] = 1.0
 
-    def pmf(self, x_max: int) -> np.ndarray:
+    def pmf(self, x_max: int) -> FloatArray:
         """P(X = x, next = σ' | σ) for x = 1..x_max, shape (x_max, t, t)."""
         have = self._pmf.shape[0]
         if x_max > have:
@@ -142,7 +152,7 @@ class _Walk:
             self._pmf = np.concatenate(out, axis=0)
         return self._pmf[:x_max]
 
-    def bin_moments(self, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def bin_moments(self, edges: IntArray) -> tuple[FloatArray, FloatArray]:
         """Per bin: P(B = i, next = σ' | σ) and E[X; B = i, next = σ' | σ], shapes (k, t, t).
 
         Bin i holds the gaps in [edges[i], edges[i+1]), the last one [edges[-1], inf).
@@ -156,13 +166,13 @@ class _Walk:
         mean = np.zeros((k, self.t, self.t))
         for i in range(k - 1):
             lo, hi = int(edges[i]), int(edges[i + 1])
-            prob[i] = pmf[lo - 1:hi - 1].sum(axis=0)
-            mean[i] = (x[lo - 1:hi - 1] * pmf[lo - 1:hi - 1]).sum(axis=0)
+            prob[i] = pmf[lo - 1 : hi - 1].sum(axis=0)
+            mean[i] = (x[lo - 1 : hi - 1] * pmf[lo - 1 : hi - 1]).sum(axis=0)
         prob[-1] = np.clip(self.kernel - prob[:-1].sum(axis=0), 0.0, None)
         mean[-1] = np.clip(self.mean_x - mean[:-1].sum(axis=0), 0.0, None)
         return prob, mean
 
-    def time_covariance(self, edges: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def time_covariance(self, edges: IntArray) -> tuple[FloatArray, FloatArray]:
         """(p, Σ): Palm bin probabilities and the asymptotic covariance per step of the bin counts.
 
         Over n steps the counts O of delivered flags whose gap falls in each bin have mean
@@ -187,7 +197,7 @@ class _Walk:
         return p, 0.5 * (sigma + sigma.T)
 
 
-def _stationary(P: np.ndarray) -> np.ndarray:
+def _stationary(P: FloatArray) -> FloatArray:
     """Stationary law of a stochastic matrix with one recurrent class (types that are never the
     start of a gap get zero mass)."""
     n = P.shape[0]
@@ -199,25 +209,31 @@ def _stationary(P: np.ndarray) -> np.ndarray:
     rhs[0] = 1.0
     pi = np.linalg.solve(M, rhs)
     pi = np.clip(pi, 0.0, None)
-    return pi / pi.sum()
+    out: FloatArray = pi / pi.sum()
+    return out
 
 
 @functools.lru_cache(maxsize=4096)
-def _walk(lam: float, z0: int, mu: float, attack: Any) -> _Walk:
-    return _Walk(lam, z0, mu, attack)
+def _walk(lam: float, design: OnlineDesign, attack: Attack | None) -> _Walk:
+    return _Walk(lam, design, attack)
 
 
-def walk(lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0) -> _Walk:
-    """The (cached) gap walk of a validated schedule and attack."""
-    lam, z0, mu = check_online(lam, z0, mu)
-    return _walk(lam, z0, mu, as_attack(attack))
+def walk(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) -> _Walk:
+    """The (cached) gap walk of a schedule and attack, validated here."""
+    lam, design = check_online(lam, z0, mu)
+    return design_walk(lam, design, attack)
+
+
+def design_walk(lam: float, design: OnlineDesign, attack: AttackLike = None) -> _Walk:
+    """The (cached) gap walk of a validated schedule, under any attack."""
+    return _walk(lam, design, as_attack(attack))
 
 
 @dataclass(frozen=True)
 class IntervalLaw:
     """The law of the gaps between flag-ACKs reaching the sensor (see :func:`flag_interval_law`)."""
 
-    pmf: np.ndarray
+    pmf: FloatArray
     """P(X = x) for x = 1..len(pmf) (a gap drawn at a typical delivered flag, the Palm law)."""
     tail: float
     """P(X > len(pmf))."""
@@ -233,7 +249,7 @@ class IntervalLaw:
 
 
 def flag_interval_law(
-    lam: Any, z0: Any, attack: Any = None, mu: Any = 1.0, x_max: Any = None
+    lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0, x_max: int | None = None
 ) -> IntervalLaw:
     r"""Exact law of the gaps between flag-ACKs reaching the sensor, under any attack.
 
@@ -307,7 +323,9 @@ class FlagCount:
     n_steps: int
 
 
-def flag_count_moments(lam: Any, z0: Any, n_steps: Any, attack: Any = None, mu: Any = 1.0) -> FlagCount:
+def flag_count_moments(
+    lam: float, z0: int, n_steps: int, attack: AttackLike = None, mu: float = 1.0
+) -> FlagCount:
     r"""Mean and (asymptotic) variance of the flag-ACKs reaching the sensor in ``n_steps`` steps.
 
     In the stationary regime the count N over n steps has mean :math:`n/m` exactly (m the mean

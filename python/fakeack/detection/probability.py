@@ -17,24 +17,21 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from typing import TypeAlias
 
 import numpy as np
 from scipy.special import ndtr
 
 from .. import _fakeack
-from .._internal.validate import as_int, as_probability
-from ..attacks.kinds import as_attack, core_attack
-from ..model.schedules import check_online
+from .._internal.types import FloatArray
+from .._internal.validate import as_int, as_probability, as_real
+from ..attacks.kinds import Attack, AttackLike, as_attack, core_attack
+from ..model.schedules import OnlineDesign, check_online
 from . import _quadform
-from .count import (
-    check_alternative,
-    count_alarm_bounds,
-    harmful_count_bound,
-)
+from .count import alarm_bounds, check_alternative, harmful_bound
 from .flags import estimate_beta
 from .interval_test import IntervalTest, cached_interval_test
-from .intervals import walk
+from .intervals import design_walk
 
 __all__ = [
     "TESTS",
@@ -47,21 +44,27 @@ __all__ = [
 #: The sensor's tests.
 TESTS = ("count", "interval")
 
+#: Rows (lam, b, delta, x, weight) of weighted generalised chi-square tails (:class:`AttackForm`).
+Rows: TypeAlias = tuple[FloatArray, FloatArray, FloatArray, FloatArray, FloatArray]
+#: The test arguments of the closed-loop kernel: kind, lo, hi, edges, expected, critical,
+#: harmful_at_most, fallback.
+KernelTest: TypeAlias = tuple[str, int, int, list[int], list[float], float, int | None, int]
 
-def check_test(test: Any) -> str:
+
+def check_test(test: object) -> str:
     """A valid test name."""
     if test not in TESTS:
         raise ValueError(f"test must be one of {TESTS}, got {test!r}")
-    return test
+    return str(test)
 
 
 # ---------------------------------------------------------------------------------------------
 # Detection probabilities.
 
 
-def count_moments(lam: float, z0: int, mu: float, n: int, attack: Any) -> tuple[float, float]:
+def count_moments(lam: float, design: OnlineDesign, n: int, attack: Attack | None) -> tuple[float, float]:
     """(mean, sd) of a stationary window's count under the attack (:func:`flag_count_moments`)."""
-    w = walk(lam, z0, attack, mu)
+    w = design_walk(lam, design, attack)
     if w.endless:
         return 0.0, 0.0
     _, sig = w.time_covariance(np.array([1]))
@@ -92,14 +95,22 @@ def count_alarm_probability(
     return min(max(p, 0.0), 1.0)
 
 
-def _count_probability(lam, z0, mu, n, alpha, alternative, attack, harm):
-    bounds = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
-    return count_alarm_probability(bounds, n, count_moments(lam, z0, mu, n, attack), harm)
+def _count_probability(
+    lam: float,
+    design: OnlineDesign,
+    n: int,
+    alpha: float,
+    alternative: str,
+    attack: Attack | None,
+    harm: int | None,
+) -> float:
+    bounds = alarm_bounds(lam, design, n, alpha, alternative)
+    return count_alarm_probability(bounds, n, count_moments(lam, design, n, attack), harm)
 
 
-def _attack_form(test: IntervalTest, attack: Any) -> tuple[np.ndarray, np.ndarray] | None:
+def _attack_form(test: IntervalTest, attack: AttackLike) -> tuple[FloatArray, FloatArray] | None:
     """(mean, covariance) of y = D^-1/2 (O - E) under the attack; None when no flag gets through."""
-    w = walk(test.lam, test.z0, attack, test.mu)
+    w = design_walk(test.lam, test.design, attack)
     if w.endless:
         return None
     n = test.n_steps
@@ -125,11 +136,11 @@ class AttackForm:
     split where s² crosses c).
     """
 
-    def __init__(self, test: IntervalTest, attack: Any):
+    def __init__(self, test: IntervalTest, attack: AttackLike) -> None:
         form = _attack_form(test, attack)
         self.none = form is None  # no flag: O = 0, X² = Σ E deterministic, N = 0
         self.total = float(test.expected.sum())
-        if self.none:
+        if form is None:
             return
         mean, cov = form
         self.lam, self.b, self.delta = _quadform.canonical(cov, mean)
@@ -154,11 +165,11 @@ class AttackForm:
         # |m(s)|² - |U'm(s)|², the part of the conditional mean outside the range: a2 s² + a1 s + a0.
         self.a = (m_0 @ m_0 - p_0 @ p_0, 2 * (m_0 @ m_1 - p_0 @ p_1), m_1 @ m_1 - p_1 @ p_1)
 
-    def rows_any(self, c: float) -> tuple:
+    def rows_any(self, c: float) -> Rows:
         """Rows (lam, b, delta, x, weight) whose weighted tails sum to P(X² > c)."""
         return self.lam[None], self.b[None], np.array([self.delta]), np.array([c]), np.ones(1)
 
-    def rows_joint(self, c: float, s_hi: float) -> tuple | float:
+    def rows_joint(self, c: float, s_hi: float) -> Rows | float:
         """Rows for P(X² > c, s <= s_hi), or the probability itself when no integral is needed."""
         if self.count_fixed:
             if self.mu_s > s_hi:
@@ -179,7 +190,7 @@ class AttackForm:
         return lam, b, delta, c - s**2, wq * dens
 
 
-def sum_tails(batches: list) -> np.ndarray:
+def sum_tails(batches: list[Rows | float]) -> FloatArray:
     """Σ weight · tail per batch (a batch is a probability, or rows from :class:`AttackForm`), in one
     vectorised call."""
     out = np.zeros(len(batches))
@@ -207,7 +218,7 @@ def sum_tails(batches: list) -> np.ndarray:
     return np.clip(out, 0.0, 1.0)
 
 
-def interval_batch(test: IntervalTest, form: AttackForm, harm: int | None) -> tuple | float:
+def interval_batch(test: IntervalTest, form: AttackForm, harm: int | None) -> Rows | float:
     """One attack's rows for the interval test's (harmful) alarm probability."""
     if form.none:
         return float(form.total > test.critical and (harm is None or harm >= 0))
@@ -221,27 +232,27 @@ def interval_batch(test: IntervalTest, form: AttackForm, harm: int | None) -> tu
     return form.rows_joint(test.critical, s_hi)
 
 
-def _interval_probability(test: IntervalTest, attack: Any, harm: int | None) -> float:
+def _interval_probability(test: IntervalTest, attack: AttackLike, harm: int | None) -> float:
     return float(sum_tails([interval_batch(test, AttackForm(test, attack), harm)])[0])
 
 
-def _joint_tail(test: IntervalTest, attack: Any, s_hi: float) -> float:
+def _joint_tail(test: IntervalTest, attack: AttackLike, s_hi: float) -> float:
     """P(X² > c and ŵ'y <= s_hi) under the attack (for the tests)."""
     form = AttackForm(test, attack)
     return float(sum_tails([form.rows_joint(test.critical, s_hi)])[0])
 
 
 def detection_probability(
-    lam: Any,
-    z0: Any,
-    attack: Any,
-    n_steps: Any,
-    alpha: Any,
+    lam: float,
+    z0: int,
+    attack: AttackLike,
+    n_steps: int,
+    alpha: float,
     test: str = "count",
     alternative: str = "two-sided",
-    mu: Any = 1.0,
+    mu: float = 1.0,
     *,
-    beta_bar: Any = None,
+    beta_bar: float | None = None,
 ) -> float:
     r"""Probability that the sensor's test raises an alarm in one window of ``n_steps`` steps.
 
@@ -295,25 +306,24 @@ def detection_probability(
     >>> 0.005 < p < 0.015
     True
     """
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
     att = as_attack(attack)
     n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
     alpha = as_probability("alpha", alpha)
     test = check_test(test)
     alternative = check_alternative(alternative)
-    harm = None if beta_bar is None else harmful_count_bound(lam, z0, n, beta_bar, mu)
+    harm = None if beta_bar is None else harmful_bound(lam, design, n, as_real("beta_bar", beta_bar))
     if test == "count":
-        return _count_probability(lam, z0, mu, n, alpha, alternative, att, harm)
+        return _count_probability(lam, design, n, alpha, alternative, att, harm)
     if alternative != "two-sided":
         raise ValueError(f"alternative: the interval test is two-sided by construction, got {alternative!r}")
-    return _interval_probability(cached_interval_test(lam, z0, mu, n, alpha), att, harm)
+    return _interval_probability(cached_interval_test(lam, design, n, alpha), att, harm)
 
 
 def simulate_windows(
     lam: float,
-    z0: int,
-    mu: float,
-    attack: Any,
+    design: OnlineDesign,
+    attack: Attack | None,
     n: int,
     runs: int,
     seed: int,
@@ -322,17 +332,17 @@ def simulate_windows(
     alternative: str,
     burn_in: int,
     progress: bool | None = False,
-) -> tuple[np.ndarray, np.ndarray]:
+) -> tuple[FloatArray, FloatArray]:
     """Alarms (0/1) and delivered flag-ACKs of ``runs`` simulated windows of ``n`` steps, one per run,
     after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back)."""
     from .._internal.progress import Progress
     from .flags import any_system
 
     if test == "count":
-        lo, hi = count_alarm_bounds(lam, z0, n, alpha, alternative, mu)
-        args = ("count", lo, hi, [], [], 0.0, None, 0)
+        lo, hi = alarm_bounds(lam, design, n, alpha, alternative)
+        args: KernelTest = ("count", lo, hi, [], [], 0.0, None, 0)
     else:
-        t = cached_interval_test(lam, z0, mu, n, alpha)
+        t = cached_interval_test(lam, design, n, alpha)
         args = (
             "interval",
             -1,
@@ -347,7 +357,20 @@ def simulate_windows(
     burn_in = -(-burn_in // n) * n  # whole windows, so that the measured window is one window
     try:
         out = _fakeack.simulate_game(
-            any_system()._core, lam, 1, 2, z0, mu, core_attack(attack), *args, n, n, burn_in, runs, seed, bar
+            any_system()._core,
+            lam,
+            1,
+            2,
+            design.z0,
+            design.mu,
+            core_attack(attack),
+            *args,
+            n,
+            n,
+            burn_in,
+            runs,
+            seed,
+            bar,
         )
     finally:
         bar.close()
@@ -378,17 +401,17 @@ class DetectionRates:
 
 
 def detection_rates(
-    lam: Any,
-    z0: Any,
-    attack: Any,
-    n_steps: Any = 1000,
-    runs: Any = 2000,
-    mu: Any = 1.0,
-    alpha: Any = 0.01,
-    seed: Any = 1,
+    lam: float,
+    z0: int,
+    attack: AttackLike,
+    n_steps: int = 1000,
+    runs: int = 2000,
+    mu: float = 1.0,
+    alpha: float = 0.01,
+    seed: int = 1,
     test: str = "count",
     alternative: str | None = None,
-    burn_in: Any = 0,
+    burn_in: int = 0,
 ) -> DetectionRates:
     """False-alarm and detection rates of the sensor's tests by Monte Carlo of the protocol.
 
@@ -432,7 +455,7 @@ def detection_rates(
     """
     from .count import check_alternative
 
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
     att = as_attack(attack)
     if att is None:
         raise ValueError("attack: give the attack whose detection rate you want, e.g. (1, 5)")
@@ -447,14 +470,15 @@ def detection_rates(
     if test == "interval" and alternative != "two-sided":
         raise ValueError("alternative: the interval test is two-sided by construction")
     burn_in = as_int("burn_in", burn_in, minimum=0)
-    flagged, se = {}, {}
-    delivered = None
+    flagged: dict[str, float] = {}
+    se: dict[str, float] = {}
+    delivered = np.zeros(0)  # the attacked windows' counts, from the loop's last run
     for name, a, sd in (("clean", None, seed), ("attacked", att, seed + 1)):
-        alarms, counts = simulate_windows(lam, z0, mu, a, n, runs, sd, test, alpha, alternative, burn_in)
+        alarms, counts = simulate_windows(lam, design, a, n, runs, sd, test, alpha, alternative, burn_in)
         p = float(np.mean(alarms))
         flagged[name], se[name] = p, math.sqrt(max(p * (1 - p), 0.0) / runs)
         delivered = counts
-    betas = np.array([estimate_beta(int(c), n, lam, z0, mu) for c in delivered])
+    betas = np.array([estimate_beta(int(c), n, lam, design.z0, design.mu) for c in delivered])
     beta = float(att.beta)
     return DetectionRates(
         flagged["clean"],

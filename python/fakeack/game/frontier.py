@@ -3,19 +3,19 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
 
+from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
 from ..attacks.chain import j_attack
-from ..attacks.kinds import FlagInjection, PeriodicBlocking, RandomBlocking
+from ..attacks.kinds import Attack, FlagInjection, PeriodicBlocking, RandomBlocking
 from ..attacks.random import rate_matching_attack
 from ..attacks.rates import high_power_rate
 from ..detection.count import check_alternative
 from ..detection.probability import check_test, detection_probability
-from ..model.schedules import check_online
-from ..model.system import compiled
+from ..model.schedules import OnlineDesign, check_online
+from ..model.system import LinearSystem, compiled
 
 __all__ = [
     "FAMILIES",
@@ -32,7 +32,7 @@ FAMILIES = ("periodic", "random", "random+inject")
 class StealthyFrontier:
     """The result of :func:`stealthy_frontier`."""
 
-    attack: Any
+    attack: Attack | None
     """The attack of the family with the largest J whose detection probability per window is at
     most ``max_detection`` (``None`` if even no attack is detected more often, i.e. max_detection
     below the false-alarm rate)."""
@@ -42,12 +42,12 @@ class StealthyFrontier:
     """Its fraction of steps at high power."""
     detection: float
     """Its detection probability per window."""
-    frontier: tuple[np.ndarray, np.ndarray]
+    frontier: tuple[FloatArray, FloatArray]
     """(detection, J) of the family's Pareto frontier (no other attack has higher J at lower
     detection), sorted by detection: J against detection probability, for plotting."""
-    frontier_attacks: list
+    frontier_attacks: list[Attack]
     """The attacks on the frontier, in the same order."""
-    candidates: tuple[np.ndarray, np.ndarray]
+    candidates: tuple[FloatArray, FloatArray]
     """(detection, J) of every attack searched."""
     family: str
     test: str
@@ -57,36 +57,36 @@ class StealthyFrontier:
     j_online: float
 
 
-def _candidates(family: str, lam: float, z0: int, mu: float, t_max: int, grid: int) -> list:
+def _candidates(family: str, lam: float, design: OnlineDesign, t_max: int, grid: int) -> list[Attack]:
     if family == "periodic":
         return [PeriodicBlocking(r, t) for t in range(1, t_max + 1) for r in range(t)]
     betas = np.linspace(0.0, 1.0, grid)
     if family == "random":
         return [RandomBlocking(b) for b in betas]
-    out = []
+    out: list[Attack] = []
     # A grid of (beta, gamma) and the rate-matching curve through it.
     gammas = np.linspace(0.0, 0.2, (grid + 1) // 2)
     for b in betas[:-1]:
         for g in gammas:
             out.append(FlagInjection(g, RandomBlocking(b)))
-        out.append(rate_matching_attack(lam, z0, b, mu))
+        out.append(rate_matching_attack(lam, design.z0, b, design.mu))
     return out
 
 
 def stealthy_frontier(
-    system: Any,
-    lam: Any,
-    z0: Any,
-    n_steps: Any,
-    alpha: Any,
+    system: LinearSystem,
+    lam: float,
+    z0: int,
+    n_steps: int,
+    alpha: float,
     test: str,
     family: str,
-    max_detection: Any,
-    t_max: Any = 60,
-    mu: Any = 1.0,
+    max_detection: float,
+    t_max: int = 60,
+    mu: float = 1.0,
     *,
     alternative: str = "two-sided",
-    grid: Any = 41,
+    grid: int = 41,
 ) -> StealthyFrontier:
     r"""The attack of a family that maximises J subject to a detection probability per window of at
     most ``max_detection``.
@@ -134,7 +134,8 @@ def stealthy_frontier(
     StealthyFrontier
     """
     compiled(system)
-    lam, z0, mu = check_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
+    z0, mu = design
     n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
     alpha = as_probability("alpha", alpha)
     test = check_test(test)
@@ -146,13 +147,14 @@ def stealthy_frontier(
         raise ValueError(f"max_detection must lie in [0, 1], got {bound}")
     t_max = as_int("t_max", t_max, minimum=1, maximum=500)
     grid = as_int("grid", grid, minimum=2, maximum=1001)
-    attacks = _candidates(family, lam, z0, mu, t_max, grid)
+    attacks = _candidates(family, lam, design, t_max, grid)
     j = np.array([j_attack(system, lam, z0, mu=mu, attack=a) for a in attacks])
     d = np.array([detection_probability(lam, z0, a, n, alpha, test, alternative, mu) for a in attacks])
     j_on = j_attack(system, lam, z0, mu=mu, attack=PeriodicBlocking(0, 1))
     # Pareto frontier: by detection (ties: larger J first), keep each new maximum of J.
     order = np.lexsort((-j, d))
-    front, best = [], -np.inf
+    front: list[int] = []
+    best = -np.inf
     for i in order:
         if j[i] > best:
             front.append(i)
@@ -165,6 +167,17 @@ def stealthy_frontier(
     else:
         att, ji, di, hp = None, float("nan"), float("nan"), float("nan")
     return StealthyFrontier(
-        att, ji, hp, di, (d[front], j[front]), [attacks[i] for i in front], (d, j),
-        family, test, n, alpha, bound, j_on,
+        att,
+        ji,
+        hp,
+        di,
+        (d[front], j[front]),
+        [attacks[i] for i in front],
+        (d, j),
+        family,
+        test,
+        n,
+        alpha,
+        bound,
+        j_on,
     )

@@ -33,17 +33,19 @@ exceeds β̄, the threshold past which online is worse than offline.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from fractions import Fraction
+from typing import cast
 
 import numpy as np
 
+from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_int, as_probability, as_ratio, as_real
 from ..attacks.chain import j_attack
-from ..attacks.kinds import PeriodicBlocking, as_attack
-from ..attacks.rates import high_power_rate
+from ..attacks.kinds import Attack, AttackLike, PeriodicBlocking, as_attack
+from ..attacks.rates import design_high_power_rate
 from ..attacks.threshold import choose_schedule
-from ..detection.count import count_alarm_bounds, harmful_count_bound
-from ..detection.interval_test import cached_interval_test
+from ..detection.count import alarm_bounds, harmful_bound
+from ..detection.interval_test import IntervalTest, cached_interval_test
 from ..detection.probability import (
     AttackForm,
     count_alarm_probability,
@@ -51,8 +53,8 @@ from ..detection.probability import (
     interval_batch,
     sum_tails,
 )
-from ..model.schedules import design_online, j_offline
-from ..model.system import compiled
+from ..model.schedules import OnlineDesign, design_online, j_offline
+from ..model.system import LinearSystem, compiled
 from .policies import SensorPolicy
 
 __all__ = [
@@ -65,38 +67,40 @@ __all__ = [
 class _Setting:
     """The game's fixed data: system, schedules, window, the sensor's β̄."""
 
-    system: Any
+    system: LinearSystem
     lam: float
-    ratio: Any
-    z0: int
-    mu: float
+    ratio: Fraction
+    design: OnlineDesign
     n: int
     beta_bar: float
     j_off: float
     hp_off: float
-    _cache: dict = field(default_factory=dict)
+    # Keyed by what was computed and for which attack (or policy's alpha and alternative).
+    _cache: dict[tuple[object, ...], object] = field(default_factory=dict)
 
     @classmethod
-    def make(cls, system: Any, lam: Any, ratio: Any, n_steps: Any, beta_bar: Any) -> _Setting:
+    def make(
+        cls, system: LinearSystem, lam: float, ratio: RatioLike, n_steps: int, beta_bar: float | None
+    ) -> _Setting:
         compiled(system)
         lam_f = as_probability("lam", lam)
         r = as_ratio("ratio", ratio)
         n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
-        z0, mu = design_online(lam_f, r)
+        design = design_online(lam_f, r)
         if beta_bar is None:
-            bb = choose_schedule(system, lam_f, r, 0, z0=z0, mu=mu).beta_bar
+            bb = choose_schedule(system, lam_f, r, 0, z0=design.z0, mu=design.mu).beta_bar
         else:
             bb = as_real("beta_bar", beta_bar)
-        return cls(system, lam_f, r, z0, mu, n, bb, j_offline(system, lam_f, r), float(r))
+        return cls(system, lam_f, r, design, n, bb, j_offline(system, lam_f, r), float(r))
 
-    def attack_costs(self, attack: Any) -> tuple[float, float]:
+    def attack_costs(self, attack: Attack | None) -> tuple[float, float]:
         """(J, high-power rate) online under the attack (stationary)."""
         key = ("cost", attack)
         if key not in self._cache:
             online = PeriodicBlocking(0, 1) if attack is None else attack
-            j = j_attack(self.system, self.lam, self.z0, mu=self.mu, attack=online)
-            self._cache[key] = (j, high_power_rate(self.lam, self.z0, attack, self.mu))
-        return self._cache[key]
+            j = j_attack(self.system, self.lam, self.design.z0, mu=self.design.mu, attack=online)
+            self._cache[key] = (j, design_high_power_rate(self.lam, self.design, attack))
+        return cast(tuple[float, float], self._cache[key])
 
     def harm(self, policy: SensorPolicy) -> int | None:
         """The harmful rule's count bound (None for rule "any")."""
@@ -104,14 +108,14 @@ class _Setting:
             return None
         key = ("harm",)
         if key not in self._cache:
-            self._cache[key] = harmful_count_bound(self.lam, self.z0, self.n, self.beta_bar, self.mu)
-        return self._cache[key]
+            self._cache[key] = harmful_bound(self.lam, self.design, self.n, self.beta_bar)
+        return cast(int, self._cache[key])
 
-    def detection(self, policy: SensorPolicy, attack: Any) -> float:
+    def detection(self, policy: SensorPolicy, attack: Attack | None) -> float:
         """d: probability that a stationary online window ends with a triggering alarm."""
         return float(self.detections(policy, [attack])[0])
 
-    def detections(self, policy: SensorPolicy, attacks: list) -> np.ndarray:
+    def detections(self, policy: SensorPolicy, attacks: list[Attack | None]) -> FloatArray:
         """d for each attack (tails of every attack computed in one vectorised call)."""
         if policy.special:
             return np.zeros(len(attacks))
@@ -119,27 +123,27 @@ class _Setting:
         if policy.test == "count":
             bkey = ("bounds", policy.alpha, policy.alternative)
             if bkey not in self._cache:
-                self._cache[bkey] = count_alarm_bounds(
-                    self.lam, self.z0, self.n, policy.alpha, policy.alternative, self.mu
+                self._cache[bkey] = alarm_bounds(
+                    self.lam, self.design, self.n, cast(float, policy.alpha), policy.alternative
                 )
-            bounds = self._cache[bkey]
+            bounds = cast(tuple[int, int], self._cache[bkey])
             return np.array(
                 [count_alarm_probability(bounds, self.n, self._moments(a), harm) for a in attacks]
             )
-        test = cached_interval_test(self.lam, self.z0, self.mu, self.n, policy.alpha)
+        test = cached_interval_test(self.lam, self.design, self.n, cast(float, policy.alpha))
         return sum_tails([interval_batch(test, self._form(test, a), harm) for a in attacks])
 
-    def _moments(self, attack: Any) -> tuple[float, float]:
+    def _moments(self, attack: Attack | None) -> tuple[float, float]:
         key = ("moments", attack)
         if key not in self._cache:
-            self._cache[key] = count_moments(self.lam, self.z0, self.mu, self.n, attack)
-        return self._cache[key]
+            self._cache[key] = count_moments(self.lam, self.design, self.n, attack)
+        return cast(tuple[float, float], self._cache[key])
 
-    def _form(self, test: Any, attack: Any) -> AttackForm:
+    def _form(self, test: IntervalTest, attack: Attack | None) -> AttackForm:
         key = ("form", attack)  # the bins depend on n only, not on alpha
         if key not in self._cache:
             self._cache[key] = AttackForm(test, attack)
-        return self._cache[key]
+        return cast(AttackForm, self._cache[key])
 
 
 @dataclass(frozen=True)
@@ -159,13 +163,13 @@ class Payoff:
     j_offline: float
 
 
-def _payoff(setting: _Setting, policy: SensorPolicy, attack: Any, d: float | None = None) -> Payoff:
+def _payoff(setting: _Setting, policy: SensorPolicy, attack: Attack | None, d: float | None = None) -> Payoff:
     j_att, hp_att = setting.attack_costs(attack)
     if policy.test == "offline":
         return Payoff(setting.j_off, setting.hp_off, 0.0, 0.0, j_att, setting.j_off)
     if d is None:
         d = setting.detection(policy, attack)
-    k = 0 if policy.special else policy.fallback
+    k = 0 if policy.special or policy.fallback is None else policy.fallback  # a test policy has one
     online = 1.0 / (1.0 + d * k)
     off = 1.0 - online
     j = j_att if off == 0.0 else online * j_att + off * setting.j_off
@@ -173,7 +177,14 @@ def _payoff(setting: _Setting, policy: SensorPolicy, attack: Any, d: float | Non
 
 
 def game_payoff(
-    system: Any, lam: Any, ratio: Any, policy: Any, attack: Any, n_steps: Any, *, beta_bar: Any = None
+    system: LinearSystem,
+    lam: float,
+    ratio: RatioLike,
+    policy: SensorPolicy,
+    attack: AttackLike,
+    n_steps: int,
+    *,
+    beta_bar: float | None = None,
 ) -> Payoff:
     r"""The payoff of a (policy, attack) pair: the renewal average over online and fall-back windows.
 

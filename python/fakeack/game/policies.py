@@ -32,8 +32,9 @@ exceeds β̄, the threshold past which online is worse than offline.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
+from typing import TypeVar, cast
 
 from .._internal.validate import as_int, as_probability
 from ..detection.count import check_alternative
@@ -86,8 +87,14 @@ class SensorPolicy:
     rule: str = "any"
     alternative: str = "two-sided"
 
-    def __init__(self, test: Any, alpha: Any = None, fallback: Any = None, rule: Any = "any",
-                 alternative: Any = "two-sided"):
+    def __init__(
+        self,
+        test: str,
+        alpha: float | None = None,
+        fallback: int | None = None,
+        rule: str = "any",
+        alternative: str = "two-sided",
+    ) -> None:
         if test in _SPECIAL:
             if alpha is not None or fallback is not None:
                 raise ValueError(f"test: the special policy {test!r} takes no alpha or fallback")
@@ -123,36 +130,51 @@ class SensorPolicy:
         side = "" if self.test == "interval" or self.alternative == "two-sided" else f" ({self.alternative})"
         windows = "window" if self.fallback == 1 else "windows"
         after = "any alarm" if self.rule == "any" else "a harmful alarm"
-        return (f"{self.test} test{side} at alpha={self.alpha:g}, {self.fallback} {windows} offline "
-                f"after {after}")
+        return (
+            f"{self.test} test{side} at alpha={self.alpha:g}, {self.fallback} {windows} offline after {after}"
+        )
 
 
-def _policies(tests: Any, alphas: Any, fallbacks: Any, rules: Any, alternative: str) -> list[SensorPolicy]:
-    def listed(name: str, x: Any) -> list:
-        if isinstance(x, (str, bytes)) or not hasattr(x, "__iter__"):
-            x = [x]
-        out = list(x)
-        if not out:
-            raise ValueError(f"{name} must not be empty")
-        return out
+_T = TypeVar("_T")
 
-    tests, alphas = listed("tests", tests), listed("alphas", alphas)
-    fallbacks, rules = listed("fallbacks", fallbacks), listed("rules", rules)
-    for a in alphas:
+
+def _listed(name: str, x: _T | Iterable[_T]) -> list[_T]:
+    """One value or a sequence of them, as a non-empty list."""
+    if isinstance(x, (str, bytes)) or not hasattr(x, "__iter__"):
+        out = [x]
+    else:
+        out = list(cast(Iterable[_T], x))
+    if not out:
+        raise ValueError(f"{name} must not be empty")
+    return out
+
+
+def _policies(
+    tests: str | Iterable[str],
+    alphas: float | Iterable[float],
+    fallbacks: int | Iterable[int],
+    rules: str | Iterable[str],
+    alternative: str,
+) -> list[SensorPolicy]:
+    test_list: list[str] = _listed("tests", tests)
+    alpha_list: list[float] = _listed("alphas", alphas)
+    fallback_list: list[int] = _listed("fallbacks", fallbacks)
+    rule_list: list[str] = _listed("rules", rules)
+    for a in alpha_list:
         as_probability("alphas", a)
-    for k in fallbacks:
+    for k in fallback_list:
         as_int("fallbacks", k, minimum=0)
-    for t in tests:
+    for t in test_list:
         if t not in ("count", "interval"):
             raise ValueError(f"tests: each must be 'count' or 'interval', got {t!r}")
-    for r in rules:
+    for r in rule_list:
         if r not in RULES:
             raise ValueError(f"rules: each must be one of {RULES}, got {r!r}")
     out = [SensorPolicy("offline"), SensorPolicy("never")]
-    for t in tests:
-        for a in alphas:
-            for k in fallbacks:
-                for r in rules:
+    for t in test_list:
+        for a in alpha_list:
+            for k in fallback_list:
+                for r in rule_list:
                     alt = alternative if t == "count" else "two-sided"
                     p = SensorPolicy(t, a, k, r, alt)
                     if p not in out:

@@ -34,17 +34,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import Any
-
-import numpy as np
+from typing import cast
 
 from .. import _fakeack
 from .._internal.progress import Progress
+from .._internal.types import FloatArray, IntArray, RatioLike
 from .._internal.validate import as_int
-from ..attacks.kinds import as_attack, core_attack
-from ..detection.count import count_alarm_bounds, harmful_count_bound
+from ..attacks.kinds import AttackLike, as_attack, core_attack
+from ..detection.count import alarm_bounds, harmful_bound
 from ..detection.interval_test import cached_interval_test
-from ..model.system import compiled
+from ..detection.probability import KernelTest
+from ..model.system import LinearSystem, compiled
 from .payoff import _Setting
 from .policies import SensorPolicy
 
@@ -52,7 +52,6 @@ __all__ = [
     "GameSimulation",
     "simulate_game",
 ]
-
 
 
 # ---------------------------------------------------------------------------------------------
@@ -81,11 +80,11 @@ class GameSimulation:
     horizon: int
     n_steps: int
     seed: int
-    delivered_per_run: np.ndarray = field(repr=False)
+    delivered_per_run: IntArray = field(repr=False)
     """Flag-ACKs that reached the sensor in each run's measured horizon."""
 
 
-def _ratio_se(num: np.ndarray, den: np.ndarray) -> tuple[float, float]:
+def _ratio_se(num: FloatArray, den: FloatArray) -> tuple[float, float]:
     """Ratio estimator Σnum/Σden over runs and its standard error (delta method)."""
     total = den.sum()
     if total == 0:
@@ -99,18 +98,18 @@ def _ratio_se(num: np.ndarray, den: np.ndarray) -> tuple[float, float]:
 
 
 def simulate_game(
-    system: Any,
-    lam: Any,
-    ratio: Any,
-    policy: Any,
-    attack: Any,
-    horizon: Any,
-    runs: Any,
-    seed: Any,
+    system: LinearSystem,
+    lam: float,
+    ratio: RatioLike,
+    policy: SensorPolicy,
+    attack: AttackLike,
+    horizon: int,
+    runs: int,
+    seed: int,
     *,
-    n_steps: Any = 1000,
-    burn_in: Any = 0,
-    beta_bar: Any = None,
+    n_steps: int = 1000,
+    burn_in: int = 0,
+    beta_bar: float | None = None,
     progress: bool | None = None,
 ) -> GameSimulation:
     r"""Closed-loop Monte Carlo of the game: the real protocol with the sensor's test and fall-back.
@@ -176,8 +175,20 @@ def simulate_game(
     r = setting.ratio
     try:
         out = _fakeack.simulate_game(
-            compiled(system), setting.lam, r.numerator, r.denominator, setting.z0, setting.mu,
-            core_attack(att), *args, setting.n, horizon, burn_in, runs, seed, bar,
+            compiled(system),
+            setting.lam,
+            r.numerator,
+            r.denominator,
+            setting.design.z0,
+            setting.design.mu,
+            core_attack(att),
+            *args,
+            setting.n,
+            horizon,
+            burn_in,
+            runs,
+            seed,
+            bar,
         )
     finally:
         bar.close()
@@ -186,28 +197,51 @@ def simulate_game(
     alarm, alarm_se = _ratio_se(out["alarms"].astype(float), tested)
     fb, fb_se = _ratio_se(out["fallbacks"].astype(float), tested)
 
-    def sd(x: np.ndarray) -> float:
+    def sd(x: FloatArray) -> float:
         return float(x.std(ddof=1) / math.sqrt(len(x))) if len(x) > 1 else math.inf
 
     return GameSimulation(
-        float(cost.mean()), sd(cost), float(hp.mean()), sd(hp), float(out["online"].mean()),
-        alarm, alarm_se, fb, fb_se, runs, horizon, setting.n, seed, out["delivered"],
+        float(cost.mean()),
+        sd(cost),
+        float(hp.mean()),
+        sd(hp),
+        float(out["online"].mean()),
+        alarm,
+        alarm_se,
+        fb,
+        fb_se,
+        runs,
+        horizon,
+        setting.n,
+        seed,
+        out["delivered"],
     )
 
 
-def _kernel_policy(setting: _Setting, policy: SensorPolicy) -> tuple:
+def _kernel_policy(setting: _Setting, policy: SensorPolicy) -> KernelTest:
     """The compiled kernel's arguments for a policy."""
-    none = (-1, 0, [], [], 0.0, None, 0)
     if policy.test == "offline":
-        return ("offline", *none)
+        return ("offline", -1, 0, [], [], 0.0, None, 0)
     if policy.test == "never":
-        return ("online", *none)
-    harm = harmful_count_bound(setting.lam, setting.z0, setting.n, setting.beta_bar, setting.mu) \
-        if policy.rule == "harmful" else None
+        return ("online", -1, 0, [], [], 0.0, None, 0)
+    # A test policy has both (SensorPolicy checks it).
+    alpha, fallback = cast(float, policy.alpha), cast(int, policy.fallback)
+    harm = (
+        harmful_bound(setting.lam, setting.design, setting.n, setting.beta_bar)
+        if policy.rule == "harmful"
+        else None
+    )
     if policy.test == "count":
-        lo, hi = count_alarm_bounds(setting.lam, setting.z0, setting.n, policy.alpha, policy.alternative,
-                                    setting.mu)
-        return ("count", lo, hi, [], [], 0.0, harm, policy.fallback)
-    t = cached_interval_test(setting.lam, setting.z0, setting.mu, setting.n, policy.alpha)
-    return ("interval", -1, 0, [int(e) for e in t.edges], [float(e) for e in t.expected], float(t.critical),
-            harm, policy.fallback)
+        lo, hi = alarm_bounds(setting.lam, setting.design, setting.n, alpha, policy.alternative)
+        return ("count", lo, hi, [], [], 0.0, harm, fallback)
+    t = cached_interval_test(setting.lam, setting.design, setting.n, alpha)
+    return (
+        "interval",
+        -1,
+        0,
+        [int(e) for e in t.edges],
+        [float(e) for e in t.expected],
+        float(t.critical),
+        harm,
+        fallback,
+    )

@@ -32,13 +32,16 @@ exceeds β̄, the threshold past which online is worse than offline.
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
-from ..attacks.kinds import as_attack
+from .._internal.types import FloatArray, RatioLike
+from ..attacks.kinds import Attack, AttackLike, as_attack
 from ..detection.count import check_alternative
+from ..model.system import LinearSystem
 from .payoff import _payoff, _Setting
 from .policies import SensorPolicy, _policies
 
@@ -49,13 +52,12 @@ __all__ = [
 ]
 
 
-
 @dataclass(frozen=True)
 class Stackelberg:
     """The sensor commits to a pure policy first; the attacker best-responds."""
 
     policy: SensorPolicy
-    attack: Any
+    attack: Attack | None
     """The attacker's best response."""
     payoff: float
     """The committed policy's worst-case payoff."""
@@ -65,23 +67,23 @@ class Stackelberg:
 class GameSolution:
     """The solved game (see :func:`solve_game`)."""
 
-    payoff: np.ndarray
+    payoff: FloatArray
     """J for each (policy, attack): rows are ``policies``, columns ``attacks``."""
-    high_power: np.ndarray
+    high_power: FloatArray
     """Fraction of steps at high power for each pair (energy = δ + (Δ - δ) times this)."""
-    detection: np.ndarray
+    detection: FloatArray
     """d for each pair."""
-    policies: list
-    attacks: list
+    policies: list[SensorPolicy]
+    attacks: list[Attack | None]
     value: float
     """The value of the zero-sum game (mixed strategies)."""
-    sensor_strategy: np.ndarray
+    sensor_strategy: FloatArray
     """The sensor's optimal mixed strategy over ``policies``."""
-    attacker_strategy: np.ndarray
+    attacker_strategy: FloatArray
     """The attacker's optimal mixed strategy over ``attacks``."""
-    best_attack: np.ndarray
+    best_attack: npt.NDArray[np.intp]
     """For each policy, the index of the attacker's best response."""
-    best_policy: np.ndarray
+    best_policy: npt.NDArray[np.intp]
     """For each attack, the index of the sensor's best response."""
     stackelberg: Stackelberg
     j_offline: float
@@ -91,10 +93,14 @@ class GameSolution:
 
     def summary(self, top: int = 5) -> str:
         """A few lines: the value, the support of both strategies, the Stackelberg outcome."""
-        lines = [f"value of the game: J = {self.value:.6f} (J_on = {self.j_online:.6f}, "
-                 f"J_off = {self.j_offline:.6f}; windows of {self.n_steps} steps)"]
-        for who, strat, items in (("sensor", self.sensor_strategy, self.policies),
-                                  ("attacker", self.attacker_strategy, self.attacks)):
+        lines = [
+            f"value of the game: J = {self.value:.6f} (J_on = {self.j_online:.6f}, "
+            f"J_off = {self.j_offline:.6f}; windows of {self.n_steps} steps)"
+        ]
+        for who, strat, items in (
+            ("sensor", self.sensor_strategy, self.policies),
+            ("attacker", self.attacker_strategy, self.attacks),
+        ):
             order = np.argsort(-strat)
             lines.append(f"{who}'s optimal strategy:")
             for i in order[:top]:
@@ -103,16 +109,18 @@ class GameSolution:
         st = self.stackelberg
         row = self.payoff[self.policies.index(st.policy)]
         answer = "any attack (all cost the same)" if np.ptp(row) == 0 else _name(st.attack)
-        lines.append(f"Stackelberg (sensor commits to a pure policy): {st.policy}; the attacker "
-                     f"answers {answer}; J = {st.payoff:.6f}")
+        lines.append(
+            f"Stackelberg (sensor commits to a pure policy): {st.policy}; the attacker "
+            f"answers {answer}; J = {st.payoff:.6f}"
+        )
         return "\n".join(lines)
 
 
-def _name(attack: Any) -> str:
+def _name(attack: Attack | None) -> str:
     return "no attack" if attack is None else str(attack)
 
 
-def _attack_list(attacks: Any) -> list:
+def _attack_list(attacks: Iterable[AttackLike]) -> list[Attack | None]:
     if isinstance(attacks, (str, bytes)) or not hasattr(attacks, "__iter__"):
         raise TypeError("attacks must be a list of attacks (None for no attack)")
     out = [as_attack(a, "attacks") for a in attacks]
@@ -122,18 +130,18 @@ def _attack_list(attacks: Any) -> list:
 
 
 def solve_game(
-    system: Any,
-    lam: Any,
-    ratio: Any,
-    n_steps: Any,
-    alphas: Any,
-    fallbacks: Any,
-    attacks: Any,
-    tests: Any = ("count", "interval"),
-    rules: Any = ("any", "harmful"),
+    system: LinearSystem,
+    lam: float,
+    ratio: RatioLike,
+    n_steps: int,
+    alphas: float | Iterable[float],
+    fallbacks: int | Iterable[int],
+    attacks: Iterable[AttackLike],
+    tests: str | Iterable[str] = ("count", "interval"),
+    rules: str | Iterable[str] = ("any", "harmful"),
     *,
     alternative: str = "two-sided",
-    beta_bar: Any = None,
+    beta_bar: float | None = None,
 ) -> GameSolution:
     r"""Solve the zero-sum game between the sensor's policies and a list of attacks.
 
@@ -193,14 +201,26 @@ def solve_game(
         raise ValueError(f"attacks: {_name(attack_list[a])} makes J infinite under {policies[j]}")
     m, k = A.shape
     # Sensor: min v  s.t.  A' x - v <= 0, sum x = 1, x >= 0.
-    sen = linprog(np.r_[np.zeros(m), 1.0], A_ub=np.c_[A.T, -np.ones(k)], b_ub=np.zeros(k),
-                  A_eq=np.r_[np.ones(m), 0.0][None], b_eq=[1.0],
-                  bounds=[(0, None)] * m + [(None, None)], method="highs")
+    sen = linprog(
+        np.r_[np.zeros(m), 1.0],
+        A_ub=np.c_[A.T, -np.ones(k)],
+        b_ub=np.zeros(k),
+        A_eq=np.r_[np.ones(m), 0.0][None],
+        b_eq=[1.0],
+        bounds=[(0, None)] * m + [(None, None)],
+        method="highs",
+    )
     # Attacker: max u  s.t.  -A y + u <= 0, sum y = 1, y >= 0.
-    att = linprog(np.r_[np.zeros(k), -1.0], A_ub=np.c_[-A, np.ones(m)], b_ub=np.zeros(m),
-                  A_eq=np.r_[np.ones(k), 0.0][None], b_eq=[1.0],
-                  bounds=[(0, None)] * k + [(None, None)], method="highs")
-    if not (sen.success and att.success):
+    att = linprog(
+        np.r_[np.zeros(k), -1.0],
+        A_ub=np.c_[-A, np.ones(m)],
+        b_ub=np.zeros(m),
+        A_eq=np.r_[np.ones(k), 0.0][None],
+        b_eq=[1.0],
+        bounds=[(0, None)] * k + [(None, None)],
+        method="highs",
+    )
+    if not (sen.success and att.success) or sen.x is None or att.x is None:
         raise RuntimeError(f"linprog failed: {sen.message} / {att.message}")
     x = np.clip(sen.x[:m], 0.0, None)
     y = np.clip(att.x[:k], 0.0, None)
@@ -208,10 +228,19 @@ def solve_game(
     i = int(np.argmin(worst))
     jbest = int(np.argmax(A[i]))
     return GameSolution(
-        payoff=A, high_power=H, detection=D, policies=policies, attacks=attack_list,
-        value=float(sen.x[m]), sensor_strategy=x / x.sum(), attacker_strategy=y / y.sum(),
-        best_attack=A.argmax(axis=1), best_policy=A.argmin(axis=0),
+        payoff=A,
+        high_power=H,
+        detection=D,
+        policies=policies,
+        attacks=attack_list,
+        value=float(sen.x[m]),
+        sensor_strategy=x / x.sum(),
+        attacker_strategy=y / y.sum(),
+        best_attack=A.argmax(axis=1),
+        best_policy=A.argmin(axis=0),
         stackelberg=Stackelberg(policies[i], attack_list[jbest], float(worst[i])),
-        j_offline=setting.j_off, j_online=setting.attack_costs(None)[0], n_steps=setting.n,
+        j_offline=setting.j_off,
+        j_online=setting.attack_costs(None)[0],
+        n_steps=setting.n,
         beta_bar=setting.beta_bar,
     )

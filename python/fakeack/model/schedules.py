@@ -5,13 +5,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any, NamedTuple
-
-import numpy as np
+from typing import NamedTuple
 
 from .. import _fakeack
+from .._internal.types import IntArray, RatioLike
 from .._internal.validate import as_fraction, as_int, as_probability, as_ratio
-from .system import compiled
+from .system import LinearSystem, compiled
 
 __all__ = [
     "energy_ratio",
@@ -26,8 +25,7 @@ __all__ = [
 ]
 
 
-
-def energy_ratio(Psi: Any, Delta: Any, delta: Any) -> Fraction:
+def energy_ratio(Psi: RatioLike, Delta: RatioLike, delta: RatioLike) -> Fraction:
     r"""The fraction of high-power steps the budget allows, :math:`p/q = (\Psi-\delta)/(\Delta-\delta)`.
 
     Parameters
@@ -66,7 +64,7 @@ def energy_ratio(Psi: Any, Delta: Any, delta: Any) -> Fraction:
     return (psi - lo) / (hi - lo)
 
 
-def offline_schedule(ratio: Any) -> np.ndarray:
+def offline_schedule(ratio: RatioLike) -> IntArray:
     r"""One period of the optimal offline schedule :math:`\theta^\star_{\mathrm{off}}` (Theorem 3.1).
 
     With :math:`s_0 = \lfloor q/p \rfloor - 1`, the period holds :math:`m = q - p(s_0+1)` blocks
@@ -92,7 +90,7 @@ def offline_schedule(ratio: Any) -> np.ndarray:
     return _fakeack.offline_schedule(r.numerator, r.denominator)
 
 
-def j_offline(system: Any, lam: Any, ratio: Any) -> float:
+def j_offline(system: LinearSystem, lam: float, ratio: RatioLike) -> float:
     r"""Cost J of the optimal offline schedule (Proposition 3.1, with m and n as corrected).
 
     .. math::
@@ -126,15 +124,12 @@ def j_offline(system: Any, lam: Any, ratio: Any) -> float:
     return core.j_offline(lam, r.numerator, r.denominator)
 
 
-def check_online(lam: Any, z0: Any, mu: Any) -> tuple[float, int, float]:
-    return (
-        as_probability("lam", lam),
-        as_int("z0", z0, minimum=1),
-        as_probability("mu", mu, closed=True),
-    )
+def check_online(lam: float, z0: int, mu: float) -> tuple[float, OnlineDesign]:
+    """``lam`` and the online design ``(z0, mu)``, validated in that order."""
+    return as_probability("lam", lam), OnlineDesign(z0, mu)
 
 
-def j_online(system: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
+def j_online(system: LinearSystem, lam: float, z0: int, mu: float = 1.0) -> float:
     r"""Cost J of the ACK-based online schedule :math:`\theta_{\mathrm{on}}` (Theorem 4.5).
 
     Theorem 4.5 of the paper, after the online schedule of Han et al. [1]_, corrected as in
@@ -169,8 +164,8 @@ def j_online(system: Any, lam: Any, z0: Any, mu: Any = 1.0) -> float:
        estimation with communication energy constraint", IEEE TAC, 2014.
     """
     core = compiled(system)
-    lam, z0, mu = check_online(lam, z0, mu)
-    return core.j_online(lam, z0, mu)
+    lam, design = check_online(lam, z0, mu)
+    return core.j_online(lam, design.z0, design.mu)
 
 
 class _Design(NamedTuple):
@@ -207,11 +202,11 @@ class OnlineDesign(_Design):
 
     __slots__ = ()
 
-    def __new__(cls, z0: Any, mu: Any = 1.0) -> OnlineDesign:
+    def __new__(cls, z0: int, mu: float = 1.0) -> OnlineDesign:
         return super().__new__(cls, as_int("z0", z0, minimum=1), as_probability("mu", mu, closed=True))
 
     @classmethod
-    def design(cls, lam: Any, ratio: Any) -> OnlineDesign:
+    def design(cls, lam: float | Fraction, ratio: RatioLike) -> OnlineDesign:
         """The schedule that spends the energy ratio exactly (:func:`fakeack.design_online`)."""
         return design_online(lam, ratio)
 
@@ -228,7 +223,7 @@ def _rate_exact(lam: Fraction, z0: int, mu: Fraction) -> Fraction:
     return lam * a**z0 * (mu + (1 - mu) * a) / (1 - mu * a ** (z0 + 1) - (1 - mu) * a ** (z0 + 2))
 
 
-def design_online(lam: Any, ratio: Any) -> OnlineDesign:
+def design_online(lam: float | Fraction, ratio: RatioLike) -> OnlineDesign:
     r"""The online schedule :math:`(z_0, \mu)` whose high-power rate equals the energy ratio.
 
     The rate :math:`f(z_0, \mu)` of :func:`online_high_power_rate` falls from :math:`f(z_0, 1)` to
@@ -282,9 +277,7 @@ def design_online(lam: Any, ratio: Any) -> OnlineDesign:
         if _rate_exact(lam_q, z0, one) == rho:
             return OnlineDesign(z0, 1.0)
         a = 1 - lam_q
-        mu_q = (rho * (1 - a ** (z0 + 2)) - lam_q * a ** (z0 + 1)) / (
-            (1 - a) * a**z0 * (lam_q + rho * a)
-        )
+        mu_q = (rho * (1 - a ** (z0 + 2)) - lam_q * a ** (z0 + 1)) / ((1 - a) * a**z0 * (lam_q + rho * a))
         return OnlineDesign(z0, float(mu_q))
     rf, ln_a = float(rho), math.log1p(-lam_f)
     apow = math.exp(z0 * ln_a)
@@ -319,7 +312,7 @@ def _largest_z_float(lam: float, rho: float) -> int:
     return lo
 
 
-def j_max(system: Any, lam: Any) -> float:
+def j_max(system: LinearSystem, lam: float) -> float:
     r"""Cost with every flag-ACK blocked (Sec. IV-C): :math:`\sum_{i\ge0}\lambda a^i\,\mathrm{tr}_i`.
 
     Computed as :math:`\mathrm{Tr}\,X` with :math:`X = aAXA' + \lambda\bar P + aQ` (a Stein
@@ -344,7 +337,6 @@ def j_max(system: Any, lam: Any) -> float:
     return core.j_max(lam)
 
 
-
 @dataclass(frozen=True)
 class OfflineSchedule:
     """The optimal offline schedule for an energy ratio (Theorem 3.1).
@@ -359,11 +351,11 @@ class OfflineSchedule:
 
     ratio: Fraction
 
-    def __init__(self, ratio: Any):
+    def __init__(self, ratio: RatioLike) -> None:
         object.__setattr__(self, "ratio", as_ratio("ratio", ratio))
 
     @property
-    def pattern(self) -> np.ndarray:
+    def pattern(self) -> IntArray:
         """One period, 1 = high power."""
         return offline_schedule(self.ratio)
 

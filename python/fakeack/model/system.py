@@ -2,17 +2,29 @@
 
 from __future__ import annotations
 
-from typing import Any
+from collections.abc import Callable
+from typing import Protocol
 
-import numpy as np
+import numpy.typing as npt
 
 from .. import _fakeack
+from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_matrix, as_real
 
 __all__ = [
     "LinearSystem",
 ]
 
+
+class StateSpaceLike(Protocol):
+    """What :meth:`LinearSystem.from_statespace` reads: the A and C matrices (python-control's
+    ``StateSpace``, scipy's ``dlti`` and the like)."""
+
+    @property
+    def A(self) -> npt.ArrayLike: ...
+
+    @property
+    def C(self) -> npt.ArrayLike: ...
 
 
 class LinearSystem:
@@ -62,14 +74,14 @@ class LinearSystem:
 
     def __init__(
         self,
-        A: Any,
-        C: Any,
-        Q: Any,
-        R: Any,
+        A: npt.ArrayLike,
+        C: npt.ArrayLike,
+        Q: npt.ArrayLike,
+        R: npt.ArrayLike,
         *,
         tol: float = _fakeack.DEFAULT_TOL,
         max_iter: int = _fakeack.DEFAULT_MAX_ITER,
-    ):
+    ) -> None:
         a = as_matrix("A", A)
         n = a.shape[0]
         if a.shape != (n, n):
@@ -77,8 +89,7 @@ class LinearSystem:
         c = as_matrix("C", C)
         if c.shape[1] != n:
             raise ValueError(
-                f"Incompatible dimensions of C matrix; expected ({c.shape[0]}, {n}) "
-                f"but found {c.shape}"
+                f"Incompatible dimensions of C matrix; expected ({c.shape[0]}, {n}) but found {c.shape}"
             )
         m = c.shape[0]
         q = as_matrix("Q", Q, shape=(n, n))
@@ -93,7 +104,7 @@ class LinearSystem:
         self._A, self._C, self._Q, self._R = a, c, q, r
         self._tol, self._max_iter = tol, max_iter
 
-    def __reduce__(self) -> tuple[Any, tuple[Any, ...]]:
+    def __reduce__(self) -> tuple[Callable[..., LinearSystem], tuple[object, ...]]:
         # Pickled as its matrices and solver settings (for process pools and Dask workers); the
         # copy solves for P̄ again, deterministically, so it computes exactly what this one does.
         return (_rebuild, (*self._matrices(), self._tol, self._max_iter))
@@ -101,9 +112,9 @@ class LinearSystem:
     @classmethod
     def from_statespace(
         cls,
-        sys: Any,
-        Q: Any,
-        R: Any,
+        sys: StateSpaceLike,
+        Q: npt.ArrayLike,
+        R: npt.ArrayLike,
         *,
         tol: float = _fakeack.DEFAULT_TOL,
         max_iter: int = _fakeack.DEFAULT_MAX_ITER,
@@ -163,37 +174,37 @@ class LinearSystem:
 
     # Read-only views: a system is immutable once P̄ is solved.
     @property
-    def A(self) -> np.ndarray:
+    def A(self) -> FloatArray:
         """State matrix (read-only)."""
         return self._A
 
     @property
-    def C(self) -> np.ndarray:
+    def C(self) -> FloatArray:
         """Output matrix (read-only)."""
         return self._C
 
     @property
-    def Q(self) -> np.ndarray:
+    def Q(self) -> FloatArray:
         """Process-noise covariance (read-only)."""
         return self._Q
 
     @property
-    def R(self) -> np.ndarray:
+    def R(self) -> FloatArray:
         """Measurement-noise covariance (read-only)."""
         return self._R
 
     @property
     def n_x(self) -> int:
         """State dimension."""
-        return self._A.shape[0]
+        return int(self._A.shape[0])
 
     @property
     def n_y(self) -> int:
         """Output dimension."""
-        return self._C.shape[0]
+        return int(self._C.shape[0])
 
     @property
-    def pbar(self) -> np.ndarray:
+    def pbar(self) -> FloatArray:
         r"""Steady-state error covariance :math:`\bar P` of the sensor's Kalman filter (eq. (5))."""
         return self._core.pbar()
 
@@ -212,7 +223,7 @@ class LinearSystem:
         r""":math:`\rho(A)`, the largest eigenvalue modulus of A."""
         return self._core.spectral_radius
 
-    def h_traces(self, n: int) -> np.ndarray:
+    def h_traces(self, n: int) -> FloatArray:
         r"""Traces :math:`[\mathrm{Tr}\,h^0(\bar P), \ldots, \mathrm{Tr}\,h^n(\bar P)]`.
 
         Parameters
@@ -229,7 +240,7 @@ class LinearSystem:
         n = as_int("n", n, minimum=0)
         return self._core.weighted_traces(1.0, n)
 
-    def weighted_traces(self, weight: float, n: int) -> np.ndarray:
+    def weighted_traces(self, weight: float, n: int) -> FloatArray:
         r""":math:`w_i = \mathrm{weight}^i\,\mathrm{Tr}\,h^i(\bar P)` for :math:`i = 0..n`.
 
         The weight is carried inside the matrix recursion, so the result stays finite wherever
@@ -255,11 +266,11 @@ class LinearSystem:
             return f"LinearSystem({vals})"
         return f"LinearSystem(n_x={self.n_x}, n_y={self.n_y})"
 
-    def _matrices(self) -> tuple[np.ndarray, ...]:
+    def _matrices(self) -> tuple[FloatArray, ...]:
         return (self._A, self._C, self._Q, self._R)
 
 
-def _is_continuous(sys: Any) -> bool:
+def _is_continuous(sys: object) -> bool:
     """Whether a state-space object is in continuous time.
 
     python-control marks continuous time with ``dt == 0`` (True or a positive number is discrete,
@@ -274,12 +285,14 @@ def _is_continuous(sys: Any) -> bool:
     return dt is not None and dt == 0
 
 
-def _rebuild(A: Any, C: Any, Q: Any, R: Any, tol: float, max_iter: int) -> LinearSystem:
+def _rebuild(
+    A: FloatArray, C: FloatArray, Q: FloatArray, R: FloatArray, tol: float, max_iter: int
+) -> LinearSystem:
     """Unpickle a :class:`LinearSystem`."""
     return LinearSystem(A, C, Q, R, tol=tol, max_iter=max_iter)
 
 
-def compiled(system: Any) -> Any:
+def compiled(system: object) -> _fakeack.LinearSystem:
     """The compiled system behind a :class:`LinearSystem` (TypeError otherwise)."""
     if not isinstance(system, LinearSystem):
         raise TypeError(f"system must be a fakeack.LinearSystem, got {type(system).__name__}")

@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
+from .._internal.types import FloatArray, IntArray
 from .._internal.validate import as_int, as_probability
-from ..attacks.kinds import MaskBlocking, PeriodicBlocking, as_attack, core_attack
-from ..model.schedules import OfflineSchedule, OnlineSchedule
-from ..model.system import compiled
+from ..attacks.kinds import Attack, AttackLike, MaskBlocking, as_attack, core_attack
+from ..model.schedules import OfflineSchedule, OnlineDesign
+from ..model.system import LinearSystem, compiled
 
 __all__ = [
     "TraceCurve",
@@ -18,12 +19,11 @@ __all__ = [
 ]
 
 
-
 def _schedule_and_attack(
-    sched: Any, attack: Any
-) -> tuple[OfflineSchedule | OnlineSchedule, PeriodicBlocking | MaskBlocking | None]:
+    sched: OfflineSchedule | OnlineDesign, attack: AttackLike
+) -> tuple[OfflineSchedule | OnlineDesign, Attack | None]:
     """Validated schedule and attack (None: no attacker); offline schedules take none."""
-    if not isinstance(sched, (OfflineSchedule, OnlineSchedule)):
+    if not isinstance(sched, (OfflineSchedule, OnlineDesign)):
         raise TypeError(
             f"sched must be a fakeack.OfflineSchedule or fakeack.OnlineSchedule, got {type(sched).__name__}"
         )
@@ -37,25 +37,31 @@ def _schedule_and_attack(
 class TraceCurve:
     """Exact :math:`\\mathbb E[\\mathrm{Tr}\\,P_k]` and :math:`J_k` for k = 1..horizon."""
 
-    k: np.ndarray
-    trace: np.ndarray
+    k: IntArray
+    trace: FloatArray
     """E[Tr P_k]."""
-    j_k: np.ndarray
+    j_k: FloatArray
     """J_k = (1/k) Σ_{i<=k} E[Tr P_i] (the paper's Sec. V quantity)."""
 
     # Array-like: np.asarray(curve) and curve[k-1] give E[Tr P_k].
-    def __array__(self, dtype: Any = None, copy: bool | None = None) -> np.ndarray:
+    def __array__(
+        self, dtype: npt.DTypeLike | None = None, copy: bool | None = None
+    ) -> npt.NDArray[np.generic]:
         return np.asarray(self.trace, dtype=dtype)
 
     def __len__(self) -> int:
         return len(self.trace)
 
-    def __getitem__(self, index: Any) -> Any:
+    def __getitem__(self, index: int | slice) -> float | FloatArray:
         return self.trace[index]
 
 
 def expected_trace_curve(
-    system: Any, lam: Any, sched: Any, horizon: Any = 200, attack: Any = None
+    system: LinearSystem,
+    lam: float,
+    sched: OfflineSchedule | OnlineDesign,
+    horizon: int = 200,
+    attack: AttackLike = None,
 ) -> TraceCurve:
     r"""Exact finite-horizon curve :math:`\mathbb E[\mathrm{Tr}\,P_k]`, k = 1..horizon (no sampling).
 

@@ -3,16 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
-
-import numpy as np
 
 from .. import _fakeack
 from .._internal.progress import Progress
+from .._internal.types import FloatArray, IntArray
 from .._internal.validate import MODES, PROTOCOLS, as_int, as_probability
-from ..attacks.kinds import core_attack
-from ..model.schedules import OfflineSchedule
-from ..model.system import compiled
+from ..attacks.kinds import AttackLike, core_attack
+from ..model.schedules import OfflineSchedule, OnlineDesign
+from ..model.system import LinearSystem, compiled
 from .curves import _schedule_and_attack
 
 __all__ = [
@@ -21,14 +19,13 @@ __all__ = [
 ]
 
 
-
 @dataclass(frozen=True)
 class SimulationResult:
     """Monte Carlo estimates of the protocol (see :func:`simulate`)."""
 
-    j_k: np.ndarray
+    j_k: FloatArray
     """J_k = (1/k) Σ_{i<=k} Tr P_i averaged over runs, k = 1..horizon."""
-    mean_trace: np.ndarray
+    mean_trace: FloatArray
     """Tr P_k (covariance mode) or ||x_k - x̂_k||² (state mode) averaged over runs."""
     j: float
     """Time average over the horizon, averaged over runs (= j_k[-1])."""
@@ -48,7 +45,7 @@ class SimulationResult:
     protocol: str
     schedule: str = field(default="")
     attack: str = field(default="none")
-    delivered_per_run: np.ndarray | None = field(default=None, repr=False)
+    delivered_per_run: IntArray | None = field(default=None, repr=False)
     """Flag-ACKs delivered to the sensor in each run, genuine or forged (the sensor cannot tell
     them apart); only with ``record_runs=True``."""
     flags_forged: float = 0.0
@@ -83,13 +80,13 @@ class SimulationResult:
 
 
 def simulate(
-    system: Any,
-    lam: Any,
-    sched: Any,
-    horizon: Any = 1000,
-    runs: Any = 100_000,
-    seed: Any = 1,
-    attack: Any = None,
+    system: LinearSystem,
+    lam: float,
+    sched: OfflineSchedule | OnlineDesign,
+    horizon: int = 1000,
+    runs: int = 100_000,
+    seed: int = 1,
+    attack: AttackLike = None,
     mode: str = "covariance",
     protocol: str = "B",
     progress: bool | None = None,
@@ -177,8 +174,21 @@ def simulate(
     bar = Progress(runs, progress)
     try:
         out = _fakeack.simulate(
-            core, lam, kind, p, q, z0, mu, core_attack(att), mode, protocol, horizon, runs, seed,
-            bar, bool(record_runs),
+            core,
+            lam,
+            kind,
+            p,
+            q,
+            z0,
+            mu,
+            core_attack(att),
+            mode,
+            protocol,
+            horizon,
+            runs,
+            seed,
+            bar,
+            bool(record_runs),
         )
     finally:
         bar.close()

@@ -17,24 +17,28 @@ import os
 import signal
 import sys
 import threading
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+import numpy.typing as npt
 
 from .cells import Block, run_block
 from .dataset import _EXTRA, _attrs, _coords, _dataset, _variables
-from .spec import Layout, Spec, spec
+from .spec import Layout, RatioAxis, Spec, SystemsLike, spec
 from .store import GridStore, StoreError, Variable
+
+if TYPE_CHECKING:
+    import xarray as xr
+    from distributed import Client
 
 __all__ = [
     "study_grid",
     "RunInfo",
     "run_study",
 ]
-
 
 
 # -- executors ---------------------------------------------------------------------------------
@@ -147,19 +151,19 @@ def _run(
 
 
 def study_grid(
-    systems: Any,
-    lam: Any,
-    ratio: Any,
-    beta: Any = None,
+    systems: SystemsLike,
+    lam: npt.ArrayLike,
+    ratio: RatioAxis,
+    beta: RatioAxis | None = None,
     family: str = "periodic",
-    t_max: Any = 60,
-    montecarlo: Any = None,
-    executor: Any = None,
-    store: Any = None,
+    t_max: int = 60,
+    montecarlo: Mapping[str, object] | None = None,
+    executor: cf.Executor | Client | None = None,
+    store: str | os.PathLike[str] | None = None,
     resume: bool = False,
-    block: Any = None,
+    block: int | None = None,
     progress: bool | None = None,
-) -> Any:
+) -> xr.Dataset:
     r"""Every quantity of the analysis over a grid of systems, lam, energy ratios and budgets.
 
     Each cell (system, lam, ratio) gets the online design of :func:`fakeack.design_online`, the
@@ -247,19 +251,19 @@ class RunInfo:
 
 
 def run_study(
-    systems: Any,
-    lam: Any,
-    ratio: Any,
-    beta: Any = None,
+    systems: SystemsLike,
+    lam: npt.ArrayLike,
+    ratio: RatioAxis,
+    beta: RatioAxis | None = None,
     family: str = "periodic",
-    t_max: Any = 60,
-    montecarlo: Any = None,
-    executor: Any = None,
-    store: Any = None,
+    t_max: int = 60,
+    montecarlo: Mapping[str, object] | None = None,
+    executor: cf.Executor | Client | None = None,
+    store: str | os.PathLike[str] | None = None,
     resume: bool = False,
-    block: Any = None,
+    block: int | None = None,
     progress: bool | None = None,
-) -> tuple[Any, RunInfo]:
+) -> tuple[xr.Dataset, RunInfo]:
     """:func:`study_grid`, and how many blocks this call computed and found complete."""
     try:
         import xarray  # noqa: F401

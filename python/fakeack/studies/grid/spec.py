@@ -14,17 +14,24 @@ from __future__ import annotations
 import hashlib
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import Any
+from typing import Any, TypeAlias
 
 import numpy as np
+import numpy.typing as npt
 
+from ..._internal.types import RatioLike
 from ..._internal.validate import MODES, PROTOCOLS, as_fraction, as_int, as_probability, as_ratio
 from ...model.system import LinearSystem
 from .cells import MonteCarlo
 from .design import design
+
+#: The systems of a study: one, a list (named system0, system1, ...) or a dict by name.
+SystemsLike: TypeAlias = LinearSystem | Sequence[LinearSystem] | Mapping[str, LinearSystem]
+#: One exact value or a sequence of them (an axis of the grid).
+RatioAxis: TypeAlias = RatioLike | Sequence[RatioLike]
 
 __all__ = [
     "FAMILIES",
@@ -237,7 +244,15 @@ def _check_axes_meet(lam: tuple[float, ...], ratio: tuple[Fraction, ...]) -> Non
             )
 
 
-def spec(systems: Any, lam: Any, ratio: Any, beta: Any, family: Any, t_max: Any, montecarlo: Any) -> Spec:
+def spec(
+    systems: SystemsLike,
+    lam: npt.ArrayLike,
+    ratio: RatioAxis,
+    beta: RatioAxis | None,
+    family: str,
+    t_max: int,
+    montecarlo: Mapping[str, object] | None,
+) -> Spec:
     """The validated study (see :func:`fakeack.study_grid` for the arguments)."""
     names, systems_ = _systems(systems)
     lam_ = _lam_axis(lam)
@@ -258,7 +273,7 @@ class Layout:
     tile: tuple[int, int]
 
     @classmethod
-    def for_spec(cls, sp: Spec, block: Any, workers: int) -> Layout:
+    def for_spec(cls, sp: Spec, block: int | None, workers: int) -> Layout:
         """Tiles of at most ``block`` cells (None: a size that keeps scheduling overhead small)."""
         if block is None:
             cells = _default_block(sp, workers)

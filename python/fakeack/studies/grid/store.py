@@ -17,10 +17,10 @@ a store whose data does not match its completion records (truncated or damaged).
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -155,7 +155,7 @@ class GridStore:
                 f"store {str(path)!r} holds another study (its systems, grid or settings differ); "
                 "refusing to merge; use a new store, or the arguments the store was made with"
             )
-        tile = tuple(attrs.get("fakeack_tile", ()))
+        tile = tuple(cast("Sequence[int]", attrs.get("fakeack_tile", ())))  # written by this module
         if layout is not None and tuple(layout.tile) != tile:
             raise StoreError(
                 f"store {str(path)!r} is tiled in blocks of {tile[0]} x {tile[1]} (lam x ratio) cells; "
