@@ -83,7 +83,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``fakeack reproduce`` with the parsed ``args``; returns the exit code."""
     mc = None if args.runs == 0 else MonteCarloConfig(args.runs, args.horizon, args.seed)
     analysis = analyse(
-        LinearSystem(**PAPER_SYSTEM),
+        LinearSystem(*(PAPER_SYSTEM[k] for k in "ACQR")),
         PAPER_LAM,
         PAPER_RATIO,
         design_online(PAPER_LAM, PAPER_RATIO),

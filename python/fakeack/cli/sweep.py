@@ -49,7 +49,8 @@ class _Result:
 def _compute(inputs: SystemInputs, t_max: int) -> _Result:
     s, lam, ratio, cfg = inputs.system, inputs.lam, inputs.ratio, inputs.config
     designed = cfg is None or cfg.designed
-    sweep, bar = sweep_and_thresholds(s, lam, ratio, None if designed else cfg.online, t_max)
+    given = None if cfg is None or cfg.designed else cfg.online  # None: design_online's design
+    sweep, bar = sweep_and_thresholds(s, lam, ratio, given, t_max)
     z0, mu = sweep.z0, sweep.mu
     points = []
     for r, t, beta, j in zip(sweep.r, sweep.t, sweep.beta, sweep.j_attack, strict=True):

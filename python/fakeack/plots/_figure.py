@@ -54,6 +54,14 @@ def new_figure(
     return fig, fig.subplots(nrows, ncols, **subplot_kw)
 
 
+def figure_of(ax: Axes) -> Figure:
+    """The Figure that ``ax`` is drawn on (the top-level one when ``ax`` sits in a SubFigure)."""
+    from matplotlib.figure import Figure
+
+    fig = ax.figure
+    return fig if isinstance(fig, Figure) else fig.figure
+
+
 def given_axes(ax: Axes | Sequence[Axes] | Any, count: int, what: str) -> list[Axes]:
     """``ax`` (one Axes or any sequence or array of them) as a flat list of ``count`` Axes.
 

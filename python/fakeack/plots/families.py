@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..attacks.families import AttackFamilies
-from ._figure import given_axes, new_figure
+from ._figure import figure_of, given_axes, new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -47,7 +47,7 @@ def plot_attack_families(families: AttackFamilies, ax: Sequence[Axes] | None = N
         fig, (top, bottom) = new_figure((7, 6.5), 2, 1, sharex=True)
     else:
         top, bottom = given_axes(ax, 2, "cost and energy")
-        fig = top.figure
+        fig = figure_of(top)
     f = families
     styles = [
         ("periodic, large period (worst)", "C0", "-"),

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ._figure import given_axes, new_figure
+from ._figure import figure_of, given_axes, new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -55,7 +55,7 @@ def plot_frontiers(frontiers: Any, j_offline: Any = None, ax: Axes | Sequence[Ax
         )
     else:
         axes = given_axes(ax, len(tests), "one per test")
-        fig = axes[0].figure
+        fig = figure_of(axes[0])
     styles = {"periodic": ("C0", "-"), "random": ("C1", "--"), "random+inject": ("C2", "-.")}
     for a, test in zip(axes, tests, strict=True):
         for f in (f for f in frontiers if f.test == test):

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..attacks.kinds import FlagInjection
 from ..game.solve import GameSolution
-from ._figure import new_figure
+from ._figure import figure_of, new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -56,20 +56,20 @@ def plot_game(
     st_row = solution.policies.index(solution.stackelberg.policy)
     st_col = next(j for j, a in enumerate(solution.attacks) if a == solution.stackelberg.attack)
     if len(rows) > max_rows:
-        keep = set(np.flatnonzero(solution.sensor_strategy > 1e-9)) | {0, 1, st_row}
-        keep |= set(solution.best_policy[np.flatnonzero(solution.attacker_strategy > 1e-9)])
+        keep = {int(i) for i in np.flatnonzero(solution.sensor_strategy > 1e-9)} | {0, 1, st_row}
+        keep |= {int(i) for i in solution.best_policy[np.flatnonzero(solution.attacker_strategy > 1e-9)]}
         rest = [i for i in rows if i not in keep]
         rows = sorted(keep | set(rest[: max(0, max_rows - len(keep))]))
     if len(cols) > max_cols:
-        keep = set(np.flatnonzero(solution.attacker_strategy > 1e-9)) | {st_col}
-        keep |= set(solution.best_attack[rows])
+        keep = {int(j) for j in np.flatnonzero(solution.attacker_strategy > 1e-9)} | {st_col}
+        keep |= {int(j) for j in solution.best_attack[rows]}
         rest = [j for j in cols if j not in keep]
         cols = sorted(keep | set(rest[: max(0, max_cols - len(keep))]))
     sub = A[np.ix_(rows, cols)]
     if ax is None:
         fig, ax = new_figure((min(7 + 0.35 * len(cols), 20), min(3 + 0.3 * len(rows), 14)))
     else:
-        fig = ax.figure
+        fig = figure_of(ax)
     im = ax.imshow(sub, aspect="auto", cmap="viridis")
     fig.colorbar(im, ax=ax, label="J (long-run mean Tr P)")
 

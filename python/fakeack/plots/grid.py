@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ._figure import given_axes, new_figure, save_figure
+from ._figure import figure_of, given_axes, new_figure, save_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -33,7 +33,7 @@ def _panels(ax: Axes | Sequence[Axes] | None, ncols: int) -> tuple[Figure, list[
     """The given Axes (one per panel) and their Figure, or a new row of ``ncols`` panels."""
     if ax is not None:
         axes = given_axes(ax, ncols, "one per panel")
-        return axes[0].figure, axes
+        return figure_of(axes[0]), axes
     fig, grid = new_figure((4.6 * ncols + 0.8, 4.2), 1, ncols, squeeze=False)
     return fig, list(grid[0])
 

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ._figure import new_figure
+from ._figure import figure_of, new_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -55,7 +55,7 @@ def have_matplotlib() -> bool:
 def _new_axes(ax: Axes | None, figsize: tuple[float, float]) -> tuple[Figure, Axes]:
     """The Figure of ``ax``, or a new Figure (Agg canvas, no pyplot) with one Axes."""
     if ax is not None:
-        return ax.figure, ax
+        return figure_of(ax), ax
     return new_figure(figsize)
 
 
