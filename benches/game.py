@@ -45,20 +45,25 @@ def main() -> None:
         sol = fa.solve_game(system, lam, ratio, 1000, [0.001, 0.01, 0.05], [0, 1, 2, 4], atts)
         walls.append(time.perf_counter() - w)
         cpus.append(time.process_time() - c)
-    print(f"solve_game {sol.payoff.shape[0]} policies x {sol.payoff.shape[1]} attacks: "
-          f"wall {statistics.median(walls):.3f} s, cpu {statistics.median(cpus):.3f} s "
-          f"(median of {args.repeat}; load average {os.getloadavg()[0]:.2f})")
+    print(
+        f"solve_game {sol.payoff.shape[0]} policies x {sol.payoff.shape[1]} attacks: "
+        f"wall {statistics.median(walls):.3f} s, cpu {statistics.median(cpus):.3f} s "
+        f"(median of {args.repeat}; load average {os.getloadavg()[0]:.2f})"
+    )
     policy = fa.SensorPolicy("interval", 0.01, 2)
     for attack in (None, fa.PeriodicBlocking(1, 5), fa.rate_matching_attack(lam, 2, 0.2)):
         runs, horizon = 4096, 100_000
         rates = []
         for _ in range(max(1, args.repeat // 2)):
             w = time.perf_counter()
-            fa.simulate_game(system, lam, ratio, policy, attack, horizon, runs, seed=1, n_steps=1000,
-                             progress=False)
+            fa.simulate_game(
+                system, lam, ratio, policy, attack, horizon, runs, seed=1, n_steps=1000, progress=False
+            )
             rates.append(runs * horizon / (time.perf_counter() - w))
-        print(f"simulate_game ({policy}; {'no attack' if attack is None else attack}): "
-              f"{statistics.median(rates):.3g} covariance steps/s (load average {os.getloadavg()[0]:.2f})")
+        print(
+            f"simulate_game ({policy}; {'no attack' if attack is None else attack}): "
+            f"{statistics.median(rates):.3g} covariance steps/s (load average {os.getloadavg()[0]:.2f})"
+        )
 
 
 if __name__ == "__main__":

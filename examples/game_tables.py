@@ -20,15 +20,31 @@ def detection() -> None:
     """Detection probability per window: formula against simulated stationary windows."""
     n, alpha, runs = 1000, 0.01, 40_000
     print(f"detection per window of {n} steps at alpha = {alpha}: formula | simulated ({runs} windows)")
-    attacks = [None, fa.PeriodicBlocking(1, 5), fa.PeriodicBlocking(3, 20), fa.RandomBlocking(0.2),
-               fa.FlagInjection(0.02), fa.rate_matching_attack(LAM, Z0, 0.2),
-               fa.rate_matching_attack(LAM, Z0, 0.5)]
+    attacks = [
+        None,
+        fa.PeriodicBlocking(1, 5),
+        fa.PeriodicBlocking(3, 20),
+        fa.RandomBlocking(0.2),
+        fa.FlagInjection(0.02),
+        fa.rate_matching_attack(LAM, Z0, 0.2),
+        fa.rate_matching_attack(LAM, Z0, 0.5),
+    ]
     for a in attacks:
         row = []
         for test in ("count", "interval"):
             p = fa.detection_probability(LAM, Z0, a, n, alpha, test)
-            r = fa.detection_rates(LAM, Z0, a or fa.PeriodicBlocking(0, 1), n, runs, alpha=alpha, seed=7,
-                                   test=test, alternative="two-sided", burn_in=n)
+            r = fa.detection_rates(
+                LAM,
+                Z0,
+                a or fa.PeriodicBlocking(0, 1),
+                n,
+                runs,
+                alpha=alpha,
+                seed=7,
+                test=test,
+                alternative="two-sided",
+                burn_in=n,
+            )
             if a is None:
                 sim, se = r.false_alarm, r.false_alarm_stderr
             else:
@@ -50,15 +66,21 @@ def frontier() -> None:
 
 def windows() -> None:
     """The payoff formula against the closed loop, short to long windows."""
-    pairs = [(fa.SensorPolicy("count", 0.01, 2), fa.PeriodicBlocking(1, 5)),
-             (fa.SensorPolicy("interval", 0.05, 2), fa.rate_matching_attack(LAM, Z0, 0.3))]
+    pairs = [
+        (fa.SensorPolicy("count", 0.01, 2), fa.PeriodicBlocking(1, 5)),
+        (fa.SensorPolicy("interval", 0.05, 2), fa.rate_matching_attack(LAM, Z0, 0.3)),
+    ]
     for pol, att in pairs:
         for n in (100, 300, 1000, 3000, 10_000):
             p = fa.game_payoff(SYSTEM, LAM, RATIO, pol, att, n)
-            g = fa.simulate_game(SYSTEM, LAM, RATIO, pol, att, 210 * n, 1024, seed=3, n_steps=n,
-                                 burn_in=20 * n)
-            print(f"| {pol} | {att} | {n} | {p.j:.4f} | {g.j:.4f} ± {g.stderr:.4f} | "
-                  f"{g.j - p.j:+.4f} | {p.detection:.3f} | {g.fallback_rate:.3f} |", flush=True)
+            g = fa.simulate_game(
+                SYSTEM, LAM, RATIO, pol, att, 210 * n, 1024, seed=3, n_steps=n, burn_in=20 * n
+            )
+            print(
+                f"| {pol} | {att} | {n} | {p.j:.4f} | {g.j:.4f} ± {g.stderr:.4f} | "
+                f"{g.j - p.j:+.4f} | {p.detection:.3f} | {g.fallback_rate:.3f} |",
+                flush=True,
+            )
 
 
 def responses() -> None:

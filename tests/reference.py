@@ -44,7 +44,7 @@ def explore_chain(lam, z0, r, t, mu=1.0):
     order = [(0, 0)]
     i = 0
     while i < len(order):
-        for (s, _) in succ(*order[i]):
+        for s, _ in succ(*order[i]):
             if s not in index:
                 index[s] = len(order)
                 order.append(s)
@@ -52,7 +52,7 @@ def explore_chain(lam, z0, r, t, mu=1.0):
     n = len(order)
     T = np.zeros((n, n))
     for s, k in index.items():
-        for (d, p) in succ(*s):
+        for d, p in succ(*s):
             T[k, index[d]] += p
     return order, T
 
@@ -142,8 +142,10 @@ def explore_any_chain(lam, z0, mu=1.0, block=(0.0,), gamma=0.0, tau_cap=None, sp
             nxt, b = (sigma + 1) % t, block[sigma]
             out += [(st(0, 0, nxt), flag * (1 - b) + flag * b * lam), (st(tau + 1, 1, nxt), flag * b * a)]
         if flag < 1:
-            out += [(st(0, 0, sigma), (1 - flag) * (gamma + (1 - gamma) * lam)),
-                    (st(tau + 1, z + 1, sigma), (1 - flag) * (1 - gamma) * a)]
+            out += [
+                (st(0, 0, sigma), (1 - flag) * (gamma + (1 - gamma) * lam)),
+                (st(tau + 1, z + 1, sigma), (1 - flag) * (1 - gamma) * a),
+            ]
         return [(s, p) for s, p in out if p > 0]
 
     index = {(0, 0, 0): 0}

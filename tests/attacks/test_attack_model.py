@@ -37,20 +37,25 @@ def test_objects_are_frozen_hashable_and_readable():
     assert fa.PeriodicBlocking(2, 6) != fa.PeriodicBlocking(1, 3)
 
 
-@pytest.mark.parametrize("args, exc, name", [
-    ((3, 3), ValueError, "r"),
-    ((0, 0), ValueError, "t"),
-    ((-1, 5), ValueError, "r"),
-    ((1.5, 5), TypeError, "r"),
-    ((True, 5), TypeError, "r"),
-])
+@pytest.mark.parametrize(
+    "args, exc, name",
+    [
+        ((3, 3), ValueError, "r"),
+        ((0, 0), ValueError, "t"),
+        ((-1, 5), ValueError, "r"),
+        ((1.5, 5), TypeError, "r"),
+        ((True, 5), TypeError, "r"),
+    ],
+)
 def test_periodic_rejects_bad_parameters(args, exc, name):
     with pytest.raises(exc, match=names(name)):
         fa.PeriodicBlocking(*args)
 
 
-@pytest.mark.parametrize("mask, exc", [([], ValueError), ([0, 2], ValueError), ("101", TypeError),
-                                       ([[1, 0]], ValueError), (None, TypeError)])
+@pytest.mark.parametrize(
+    "mask, exc",
+    [([], ValueError), ([0, 2], ValueError), ("101", TypeError), ([[1, 0]], ValueError), (None, TypeError)],
+)
 def test_mask_rejects_bad_masks(mask, exc):
     with pytest.raises(exc, match="mask"):
         fa.MaskBlocking(mask)
@@ -70,8 +75,10 @@ def test_every_spelling_of_the_paper_attack_gives_one_cost(paper):
     assert_allclose(forms, ref, rtol=1e-10)
 
 
-@pytest.mark.parametrize("mask, mu", [([1, 0, 1, 1, 0], 1.0), ([0, 1, 1, 0, 0, 0, 1], 0.45),
-                                      ([1, 1, 0], 0.0), ([1, 0, 0, 0, 0], 0.7)])
+@pytest.mark.parametrize(
+    "mask, mu",
+    [([1, 0, 1, 1, 0], 1.0), ([0, 1, 1, 0, 0, 0, 1], 0.45), ([1, 1, 0], 0.0), ([1, 0, 0, 0, 0], 0.7)],
+)
 def test_any_mask_and_mu_against_the_independent_chain(paper, mask, mu):
     got = fa.j_attack(paper, LAM, Z0, mu=mu, attack=fa.MaskBlocking(mask))
     assert_allclose(got, j_reference(paper, LAM, Z0, mask, mu), rtol=1e-10)
@@ -92,8 +99,16 @@ def test_simulate_and_curve_accept_attack_objects(paper):
     att = fa.PeriodicBlocking(1, 5)
     a = fa.simulate(paper, LAM, fa.OnlineSchedule(Z0), 200, 512, seed=4, attack=att, progress=False)
     b = fa.simulate(paper, LAM, fa.OnlineSchedule(Z0), 200, 512, seed=4, attack=(1, 5), progress=False)
-    c = fa.simulate(paper, LAM, fa.OnlineSchedule(Z0), 200, 512, seed=4,
-                    attack=fa.MaskBlocking([1, 0, 0, 0, 0]), progress=False)
+    c = fa.simulate(
+        paper,
+        LAM,
+        fa.OnlineSchedule(Z0),
+        200,
+        512,
+        seed=4,
+        attack=fa.MaskBlocking([1, 0, 0, 0, 0]),
+        progress=False,
+    )
     assert a.j == b.j == c.j and a.attack == str(att)
     curve = fa.expected_trace_curve(paper, LAM, fa.OnlineSchedule(Z0), 3000, attack=att)
     assert_allclose(curve.j_k[-1], fa.j_attack(paper, LAM, Z0, attack=att), rtol=2e-3)

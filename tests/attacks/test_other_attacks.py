@@ -68,8 +68,11 @@ def test_random_blocking_runs_from_the_online_cost_to_j_max(paper, mu):
     assert_allclose(j[0], fa.j_online(paper, LAM, Z0, mu), rtol=1e-14)
     assert_allclose(j[-1], fa.j_max(paper, LAM), rtol=1e-12)
     assert all(x < y for x, y in zip(j, j[1:], strict=False))
-    assert_allclose(fa.high_power_rate(LAM, Z0, fa.RandomBlocking(0), mu),
-                    fa.online_high_power_rate(LAM, Z0, mu), rtol=1e-14)
+    assert_allclose(
+        fa.high_power_rate(LAM, Z0, fa.RandomBlocking(0), mu),
+        fa.online_high_power_rate(LAM, Z0, mu),
+        rtol=1e-14,
+    )
     sweep = fa.random_blocking_sweep(paper, LAM, Z0, [0, 0.25, 0.5, 1], mu)
     assert_allclose(sweep.j_attack, j, rtol=1e-15)
 
@@ -103,8 +106,11 @@ def test_infinite_exactly_past_the_growth_condition():
 def test_random_threshold(paper):
     b = fa.beta_bar_random(paper, LAM, Fraction(1, 7))
     assert 0 < b < 1
-    assert_allclose(fa.j_attack(paper, LAM, Z0, attack=fa.RandomBlocking(b)),
-                    fa.j_offline(paper, LAM, Fraction(1, 7)), rtol=1e-12)
+    assert_allclose(
+        fa.j_attack(paper, LAM, Z0, attack=fa.RandomBlocking(b)),
+        fa.j_offline(paper, LAM, Fraction(1, 7)),
+        rtol=1e-12,
+    )
 
 
 @pytest.mark.parametrize("beta", [0.2, 0.5, 2 / 3])
@@ -126,22 +132,32 @@ def test_spellings():
     assert hash(fa.RandomBlocking(0.3)) == hash(fa.RandomBlocking(0.3))
 
 
-@pytest.mark.parametrize("make, exc, name", [
-    (lambda: fa.RandomBlocking(1.5), ValueError, "beta"),
-    (lambda: fa.RandomBlocking(float("nan")), ValueError, "beta"),
-    (lambda: fa.RandomBlocking("0.3"), TypeError, "beta"),
-    (lambda: fa.RandomBlocking(fa.PeriodicBlocking(1, 5)), TypeError, "beta"),
-    (lambda: fa.FlagInjection(-0.1), ValueError, "gamma"),
-    (lambda: fa.FlagInjection(0.1, 0.3), TypeError, "block"),
-    (lambda: fa.FlagInjection(0.1, fa.FlagInjection(0.1)), TypeError, "block"),
-    (lambda: fa.attacks.as_attack("random:2"), ValueError, "beta"),
-    (lambda: fa.attacks.as_attack("inject:0.1+inject:0.2"), ValueError, "attack"),
-    (lambda: fa.high_power_rate(0.5, 2, fa.RandomBlocking(0.2), mu=fa.RandomBlocking(0.2)), TypeError, "mu"),
-    (lambda: fa.energy_per_step(0.5, 2, 1, 3), ValueError, "Delta"),
-    (lambda: fa.rate_matching_attack(0.5, 2, fa.RandomBlocking(0.2)), TypeError, "beta"),
-    (lambda: fa.random_blocking_sweep(fa.LinearSystem(1.2, 0.7, 0.8, 0.8), 0.5, 2, [0.1, 1.2]),
-     ValueError, "betas"),
-])
+@pytest.mark.parametrize(
+    "make, exc, name",
+    [
+        (lambda: fa.RandomBlocking(1.5), ValueError, "beta"),
+        (lambda: fa.RandomBlocking(float("nan")), ValueError, "beta"),
+        (lambda: fa.RandomBlocking("0.3"), TypeError, "beta"),
+        (lambda: fa.RandomBlocking(fa.PeriodicBlocking(1, 5)), TypeError, "beta"),
+        (lambda: fa.FlagInjection(-0.1), ValueError, "gamma"),
+        (lambda: fa.FlagInjection(0.1, 0.3), TypeError, "block"),
+        (lambda: fa.FlagInjection(0.1, fa.FlagInjection(0.1)), TypeError, "block"),
+        (lambda: fa.attacks.as_attack("random:2"), ValueError, "beta"),
+        (lambda: fa.attacks.as_attack("inject:0.1+inject:0.2"), ValueError, "attack"),
+        (
+            lambda: fa.high_power_rate(0.5, 2, fa.RandomBlocking(0.2), mu=fa.RandomBlocking(0.2)),
+            TypeError,
+            "mu",
+        ),
+        (lambda: fa.energy_per_step(0.5, 2, 1, 3), ValueError, "Delta"),
+        (lambda: fa.rate_matching_attack(0.5, 2, fa.RandomBlocking(0.2)), TypeError, "beta"),
+        (
+            lambda: fa.random_blocking_sweep(fa.LinearSystem(1.2, 0.7, 0.8, 0.8), 0.5, 2, [0.1, 1.2]),
+            ValueError,
+            "betas",
+        ),
+    ],
+)
 def test_bad_input(make, exc, name):
     with pytest.raises(exc, match=names(name)):
         make()

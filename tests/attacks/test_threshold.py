@@ -189,7 +189,9 @@ def test_choose_schedule_against_an_independent_regime_mix(paper, mu):
         assert_allclose([d.j_online, d.j_offline], [j_on, j_off], rtol=1e-11)
         assert d.schedule == ("online" if beta < root else "offline"), beta
     # The designed schedule (mu = 1 here) is the default; z0 given without mu means mu = 1.
-    assert fa.choose_schedule(paper, lam, ratio, 0.3) == fa.choose_schedule(paper, lam, ratio, 0.3, z0=2, mu=1.0)
+    assert fa.choose_schedule(paper, lam, ratio, 0.3) == fa.choose_schedule(
+        paper, lam, ratio, 0.3, z0=2, mu=1.0
+    )
 
 
 def test_z0_without_mu_means_a_fixed_memory(paper):
@@ -198,8 +200,14 @@ def test_z0_without_mu_means_a_fixed_memory(paper):
     lam, ratio = PAPER_LAM, PAPER_RATIO
     sw = fa.beta_sweep(paper, lam, ratio, t_max=12, z0=3)
     assert sw.mu == 1.0 and sw.z0 == 3
-    assert_allclose(sw.j_attack[:5], [j_by_general_chain(paper, lam, 3, [1] * int(r) + [0] * int(t - r), 1.0)
-                                      for r, t in zip(sw.r[:5], sw.t[:5], strict=True)], rtol=1e-10)
+    assert_allclose(
+        sw.j_attack[:5],
+        [
+            j_by_general_chain(paper, lam, 3, [1] * int(r) + [0] * int(t - r), 1.0)
+            for r, t in zip(sw.r[:5], sw.t[:5], strict=True)
+        ],
+        rtol=1e-10,
+    )
     assert fa.beta_bar(paper, lam, ratio, z0=3) == fa.beta_bar(paper, lam, ratio, z0=3, mu=1.0)
     d = fa.choose_schedule(paper, lam, ratio, 0.2, z0=3)
     assert d.mu == 1.0 and d == fa.choose_schedule(paper, lam, ratio, 0.2, z0=3, mu=1.0)
@@ -221,8 +229,10 @@ def test_worst_mask_exhaustive(paper, t, blocked, mu):
     consecutive_is_worst constant or inverted; j_consecutive of another mask; a mask with the
     wrong number of blocked flags."""
     res = fa.worst_mask(paper, 0.5, 2, t, blocked, mu)
-    js = {c: _j_reference_mask(paper, 0.5, 2, [1 if i in c else 0 for i in range(t)], mu)
-          for c in itertools.combinations(range(t), blocked)}
+    js = {
+        c: _j_reference_mask(paper, 0.5, 2, [1 if i in c else 0 for i in range(t)], mu)
+        for c in itertools.combinations(range(t), blocked)
+    }
     best = max(js.values())
     assert_allclose(res.j, best, rtol=1e-10)
     assert res.mask.shape == (t,) and res.mask.sum() == blocked
@@ -255,18 +265,21 @@ def test_consecutive_is_worst_compares_the_two_costs(paper, monkeypatch):
         assert res.mask.tolist() == [1, 0, 1, 0]
 
 
-@pytest.mark.parametrize("call, exc, name", [
-    (lambda s: fa.beta_sweep(s, 0.5, Fraction(1, 7), t_max=1), ValueError, "t_max"),
-    (lambda s: fa.beta_sweep(s, 0.5, Fraction(1, 7), t_max=10**7), ValueError, "t_max"),
-    (lambda s: fa.j_attack_pattern(s, 0.5, 2, [1, 1]), ValueError, "mask"),
-    (lambda s: fa.j_attack_pattern(s, 0.5, 2, [1, 2]), ValueError, "mask"),
-    (lambda s: fa.j_attack_pattern(s, 0.5, 2, []), ValueError, "mask"),
-    (lambda s: fa.j_attack_limit(s, 0.5, 2, 1.5), ValueError, "beta"),
-    (lambda s: fa.choose_schedule(s, 0.5, Fraction(1, 7), -0.1), ValueError, "beta"),
-    (lambda s: fa.worst_mask(s, 0.5, 2, 30, 3), ValueError, "t"),
-    (lambda s: fa.j_attack(s, 0.5, 2, 1, 3, mu=1.2), ValueError, "mu"),
-    (lambda s: fa.beta_bar(s, 0.5, Fraction(1, 2)), ValueError, "ratio"),
-])
+@pytest.mark.parametrize(
+    "call, exc, name",
+    [
+        (lambda s: fa.beta_sweep(s, 0.5, Fraction(1, 7), t_max=1), ValueError, "t_max"),
+        (lambda s: fa.beta_sweep(s, 0.5, Fraction(1, 7), t_max=10**7), ValueError, "t_max"),
+        (lambda s: fa.j_attack_pattern(s, 0.5, 2, [1, 1]), ValueError, "mask"),
+        (lambda s: fa.j_attack_pattern(s, 0.5, 2, [1, 2]), ValueError, "mask"),
+        (lambda s: fa.j_attack_pattern(s, 0.5, 2, []), ValueError, "mask"),
+        (lambda s: fa.j_attack_limit(s, 0.5, 2, 1.5), ValueError, "beta"),
+        (lambda s: fa.choose_schedule(s, 0.5, Fraction(1, 7), -0.1), ValueError, "beta"),
+        (lambda s: fa.worst_mask(s, 0.5, 2, 30, 3), ValueError, "t"),
+        (lambda s: fa.j_attack(s, 0.5, 2, 1, 3, mu=1.2), ValueError, "mu"),
+        (lambda s: fa.beta_bar(s, 0.5, Fraction(1, 2)), ValueError, "ratio"),
+    ],
+)
 def test_bad_input(paper, call, exc, name):
     with pytest.raises(exc, match=names(name)):
         call(paper)

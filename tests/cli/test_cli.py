@@ -30,7 +30,15 @@ FIGURES = {
     for stem in ("fig3_jk", "fig4_beta", "fig_stationary", "fig_attack_families")
     for ext in ("png", "svg")
 }
-ROW_KEYS = ["j_offline", "j_online", "j_attack_1/5", "j_attack_2/3", "j_max", "beta_bar_limit", "beta_bar_finite"]
+ROW_KEYS = [
+    "j_offline",
+    "j_online",
+    "j_attack_1/5",
+    "j_attack_2/3",
+    "j_max",
+    "beta_bar_limit",
+    "beta_bar_finite",
+]
 
 # A valid config to break one key at a time.
 BASE = """
@@ -62,8 +70,16 @@ def fake_simulate(monkeypatch):
 
     def fake(core, lam, kind, p, q, z0, mu, attack, mode, protocol, horizon, runs, seed, bar, *rest):
         j = np.full(horizon, 5.0)
-        return dict(j_k=j, mean_trace=j, j=5.0, stderr=0.01, high_power_rate=0.1, flags_sent=0.1, flags_blocked=0.0,
-                    flags_forged=0.0)
+        return dict(
+            j_k=j,
+            mean_trace=j,
+            j=5.0,
+            stderr=0.01,
+            high_power_rate=0.1,
+            flags_sent=0.1,
+            flags_blocked=0.0,
+            flags_forged=0.0,
+        )
 
     monkeypatch.setattr(fa._fakeack, "simulate", fake, raising=False)
 
@@ -72,7 +88,9 @@ def fake_simulate(monkeypatch):
 
 
 def test_python_m_help_subprocess():
-    p = subprocess.run([sys.executable, "-m", "fakeack", "--help"], capture_output=True, text=True, timeout=60)
+    p = subprocess.run(
+        [sys.executable, "-m", "fakeack", "--help"], capture_output=True, text=True, timeout=60
+    )
     assert p.returncode == 0, p.stderr
     for cmd in ("reproduce", "analyze", "sweep", "simulate"):
         assert cmd in p.stdout
@@ -108,7 +126,11 @@ def test_reproduce_table_without_mc(capsys):
     assert f"{exact:.6f}" in out
     flat = " ".join(out.split())
     assert "not with the stationary value" not in flat  # that footnote is for runs with MC
-    assert "note: the paper prints J_online = 1.6399" in flat and "Model note 2" in flat and "Model note 7" in flat
+    assert (
+        "note: the paper prints J_online = 1.6399" in flat
+        and "Model note 2" in flat
+        and "Model note 7" in flat
+    )
 
 
 def test_reproduce_json(capsys):
@@ -165,7 +187,11 @@ def test_reproduce_monte_carlo_agrees(capsys):
         assert rows[key]["exact_h"] == pytest.approx(np.mean(e), rel=1e-11), key
     law, e = np.zeros(horizon + 1), []
     for k in range(horizon):  # offline 1/7: high power at k = 1, 8, 15, ...
-        law = np.eye(horizon + 1)[0] if k % 7 == 0 else np.concatenate(([PAPER_LAM * law.sum()], 0.5 * law[:-1]))
+        law = (
+            np.eye(horizon + 1)[0]
+            if k % 7 == 0
+            else np.concatenate(([PAPER_LAM * law.sum()], 0.5 * law[:-1]))
+        )
         e.append(law @ tr)
     assert rows["j_offline"]["exact_h"] == pytest.approx(np.mean(e), rel=1e-11)
     assert rows["j_max"]["mc"] is None and rows["beta_bar_limit"]["mc"] is None
@@ -293,7 +319,9 @@ def test_simulate_formats_with_fake_core(capsys, tmp_path, fake_simulate):
     rows = list(csv.reader(io.StringIO(out)))
     assert rows[0] == ["k", "mc_trace", "mc_j_k", "exact_trace", "exact_j_k"] and len(rows) == 8
     dest = tmp_path / "sim.json"
-    rc, out, _ = run(capsys, "simulate", "--schedule", "offline", "--runs", 10, "--horizon", 7, "--json", "--out", dest)
+    rc, out, _ = run(
+        capsys, "simulate", "--schedule", "offline", "--runs", 10, "--horizon", 7, "--json", "--out", dest
+    )
     d = json.loads(dest.read_text())
     assert {"j", "stderr", "exact_j_h", "stationary_j", "j_k", "exact_j_k", "flagged"} <= set(d)
     assert d["flagged"] and len(d["j_k"]) == 7
@@ -303,7 +331,9 @@ def test_simulate_formats_with_fake_core(capsys, tmp_path, fake_simulate):
 
 @needs_simulate
 def test_simulate_real(capsys):
-    rc, out, _ = run(capsys, "simulate", "--attack", "2/3", "--runs", 2000, "--horizon", 40, "--seed", 3, "--json")
+    rc, out, _ = run(
+        capsys, "simulate", "--attack", "2/3", "--runs", 2000, "--horizon", 40, "--seed", 3, "--json"
+    )
     assert rc == 0
     d = json.loads(out)
     assert abs(d["j"] - d["exact_j_h"]) <= 4 * d["stderr"]
@@ -311,15 +341,18 @@ def test_simulate_real(capsys):
 
 
 @needs_simulate
-@pytest.mark.parametrize("spelling, forged", [("random:0.3", False), ("inject:0.1", True),
-                                              ("inject:0.1+random:0.3", True)])
+@pytest.mark.parametrize(
+    "spelling, forged", [("random:0.3", False), ("inject:0.1", True), ("inject:0.1+random:0.3", True)]
+)
 def test_simulate_other_attacks(capsys, spelling, forged):
     rc, out, _ = run(capsys, "simulate", "--attack", spelling, "--runs", 2000, "--horizon", 60, "--seed", 5)
     assert rc == 0
     attack = fa.attacks.as_attack(spelling)
     assert f"attack {spelling} ({attack})" in out.splitlines()[0]
     assert ("forged" in out) == forged
-    rc, out, _ = run(capsys, "simulate", "--attack", spelling, "--runs", 2000, "--horizon", 60, "--seed", 5, "--json")
+    rc, out, _ = run(
+        capsys, "simulate", "--attack", spelling, "--runs", 2000, "--horizon", 60, "--seed", 5, "--json"
+    )
     d = json.loads(out)
     assert d["attack"] == spelling and abs(d["j"] - d["exact_j_h"]) <= 4 * d["stderr"]
     assert (d["flags_forged"] > 0) == forged
@@ -398,8 +431,8 @@ sweep = { t_max = 8 }
         (lambda t: t.replace("A = 1.2", "A = [[1, 2, 3], [4, 5, 6]]"), "config: [system] A: must be square"),
         (lambda t: t.replace("Q = 0.8", "Q = -0.8"), "config: [system] Q: must be positive semi-definite"),
         (lambda t: t.replace('ratio = "1/7"', 'ratio = "1/x"'), "config: [energy] ratio: cannot read"),
-        (lambda t: t + "[montecarlo]\nruns = \"100\"\n", "config: [montecarlo] runs: must be an integer"),
-        (lambda t: t + "[attack]\nbetas = [\"1/5\", \"5/3\"]\n", "config: [attack] betas[1]: must lie in [0, 1)"),
+        (lambda t: t + '[montecarlo]\nruns = "100"\n', "config: [montecarlo] runs: must be an integer"),
+        (lambda t: t + '[attack]\nbetas = ["1/5", "5/3"]\n', "config: [attack] betas[1]: must lie in [0, 1)"),
         (lambda t: t + "[attack.sweep]\ntmax = 9\n", "config: [attack.sweep] tmax: unknown key"),
         (lambda t: t + "[montecarl]\nruns = 9\n", "config: [montecarl]: unknown section"),
         (lambda t: t + "[online]\nmu = 0.5\n", "config: [online] z0: missing"),
@@ -449,7 +482,9 @@ def test_online_z0_without_mu_means_mu_1():
     assert cfg.online == (2, 1.0) and cfg.online.mu == 1.0 and not cfg.designed
     s = fa.LinearSystem(**PAPER)
     assert fa.j_online(s, 0.5, 2, cfg.online.mu) == pytest.approx(fa.j_online(s, 0.5, 2, 1.0), rel=1e-15)
-    assert fa.j_online(s, 0.5, 2, 0.0) != pytest.approx(fa.j_online(s, 0.5, 2, 1.0))  # so a default of 0 would show
+    assert fa.j_online(s, 0.5, 2, 0.0) != pytest.approx(
+        fa.j_online(s, 0.5, 2, 1.0)
+    )  # so a default of 0 would show
 
 
 # ------------------------------------------------------------------------------ plots
@@ -476,8 +511,13 @@ def test_reproduce_reports_the_other_attacks(capsys):
     rc, out, _ = run(capsys, "reproduce", "--runs", 0, "--no-figures")
     assert rc == 0
     assert "other attacks (beyond the paper" in out
-    for label in ("random blocking beta=1/5", "random blocking beta=2/3", "injection gamma=0.1",
-                  "rate matching beta=1/5", "beta-bar against random blocking"):
+    for label in (
+        "random blocking beta=1/5",
+        "random blocking beta=2/3",
+        "injection gamma=0.1",
+        "rate matching beta=1/5",
+        "beta-bar against random blocking",
+    ):
         assert label in out
     rc, out, _ = run(capsys, "reproduce", "--runs", 0, "--no-figures", "--json")
     doc = json.loads(out)["other_attacks"]
@@ -490,22 +530,31 @@ def test_reproduce_reports_the_other_attacks(capsys):
 
 def test_analyze_config_with_random_and_injection(capsys, tmp_path):
     cfg = tmp_path / "c.toml"
-    cfg.write_text(fa.config.example_text().replace("# random = [0.2, 0.5]", "random = [0.2, 0.5]")
-                   .replace("# inject = [0.05]", "inject = [0.05]").replace("[montecarlo]", "[x]")
-                   .split("[x]")[0])
+    cfg.write_text(
+        fa.config.example_text()
+        .replace("# random = [0.2, 0.5]", "random = [0.2, 0.5]")
+        .replace("# inject = [0.05]", "inject = [0.05]")
+        .replace("[montecarlo]", "[x]")
+        .split("[x]")[0]
+    )
     rc, out, _ = run(capsys, "analyze", str(cfg))
     assert rc == 0, out
-    assert "block each flag-ACK with probability 0.5" in out and "forge a flag-ACK with probability 0.05" in out
+    assert (
+        "block each flag-ACK with probability 0.5" in out and "forge a flag-ACK with probability 0.05" in out
+    )
     parsed = fa.config.load_config(cfg)
     assert parsed.other_attacks == (fa.RandomBlocking(0.2), fa.RandomBlocking(0.5), fa.FlagInjection(0.05))
 
 
-@pytest.mark.parametrize("line, message", [
-    ("random = [1.5]", "random[0]: must lie in [0, 1]"),
-    ("inject = ['x']", "inject[0]: must be a number"),
-    ("random = 0.2", "random: must be an array"),
-    ("random = [0.2, 0.2]", "listed twice"),
-])
+@pytest.mark.parametrize(
+    "line, message",
+    [
+        ("random = [1.5]", "random[0]: must lie in [0, 1]"),
+        ("inject = ['x']", "inject[0]: must be a number"),
+        ("random = 0.2", "random: must be an array"),
+        ("random = [0.2, 0.2]", "listed twice"),
+    ],
+)
 def test_bad_other_attack_keys(tmp_path, line, message):
     text = fa.config.example_text().replace("# random = [0.2, 0.5]", line)
     with pytest.raises(fa.config.ConfigError, match=re.escape(message)):

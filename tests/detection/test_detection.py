@@ -45,7 +45,9 @@ def run_moments(lam, k):
     """X = 1 + T, T the wait for k losses in a row (loss probability a = 1 - lam): Feller's run
     formulas E T = (1 - a^k)/(lam a^k), Var T = [1 - (2k+1) lam a^k - a^(2k+1)] / (lam a^k)^2."""
     a = 1 - lam
-    return 1 + (1 - a**k) / (lam * a**k), (1 - (2 * k + 1) * lam * a**k - a ** (2 * k + 1)) / (lam * a**k) ** 2
+    return 1 + (1 - a**k) / (lam * a**k), (1 - (2 * k + 1) * lam * a**k - a ** (2 * k + 1)) / (
+        lam * a**k
+    ) ** 2
 
 
 @pytest.mark.parametrize("lam,z0,mu", [(0.5, 2, 1.0), (0.3, 3, 0.4), (0.8, 1, 0.0), (0.4, 2, 0.7)])
@@ -70,7 +72,11 @@ def test_interval_moments_closed_form():
 def test_delivered_rate_against_chain_and_simulation(paper):
     for attack in [(1, 5), (2, 3), fa.MaskBlocking([1, 0, 1, 1, 0])]:
         rate = fa.delivered_flag_rate(0.5, 2, attack)
-        mask = list(attack.mask) if isinstance(attack, fa.MaskBlocking) else [1] * attack[0] + [0] * (attack[1] - attack[0])
+        mask = (
+            list(attack.mask)
+            if isinstance(attack, fa.MaskBlocking)
+            else [1] * attack[0] + [0] * (attack[1] - attack[0])
+        )
         # Independent: the reference chain's stationary law, probability of an unblocked flag.
         states, T = ref.explore_mask_chain(0.5, 2, mask)
         pi = ref.stationary_dense(T)

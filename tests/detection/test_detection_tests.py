@@ -141,8 +141,11 @@ def test_gap_law_by_propagation(attack):
     assert_allclose(law.pmf, mean[:20] / mean.sum(), rtol=1e-9, atol=1e-13)
     assert_allclose(law.tail, mean[20] / mean.sum(), rtol=1e-7, atol=1e-13)
     assert_allclose(law.mean, 1 / fa.flag_rates(lam, z0, attack, mu).delivered, rtol=1e-12)
-    assert law.iid == (attack is None or isinstance(attack, fa.RandomBlocking)
-                       or (isinstance(attack, fa.FlagInjection) and not isinstance(attack.block, fa.PeriodicBlocking)))
+    assert law.iid == (
+        attack is None
+        or isinstance(attack, fa.RandomBlocking)
+        or (isinstance(attack, fa.FlagInjection) and not isinstance(attack.block, fa.PeriodicBlocking))
+    )
 
 
 @pytest.mark.parametrize("lam,z0,mu", [(0.5, 2, 1.0), (0.3, 3, 0.4), (0.8, 1, 0.0)])
@@ -163,14 +166,17 @@ def test_no_flag_gets_through():
 
 
 @pytest.mark.parametrize(
-    "attack", [fa.PeriodicBlocking(1, 5), fa.PeriodicBlocking(3, 7), fa.RandomBlocking(0.3), fa.FlagInjection(0.05)],
-    ids=str)
+    "attack",
+    [fa.PeriodicBlocking(1, 5), fa.PeriodicBlocking(3, 7), fa.RandomBlocking(0.3), fa.FlagInjection(0.05)],
+    ids=str,
+)
 def test_count_variance_by_simulation(paper, attack):
     # fa.simulate's per-run counts over long windows: variance n s²/m³ + O(1), mean n/m + O(1).
     n, runs = 20_000, 2000
     try:
-        res = fa.simulate(paper, 0.5, fa.OnlineSchedule(2), n, runs, seed=5, attack=attack,
-                          record_runs=True, progress=False)
+        res = fa.simulate(
+            paper, 0.5, fa.OnlineSchedule(2), n, runs, seed=5, attack=attack, record_runs=True, progress=False
+        )
     except ValueError as e:
         pytest.skip(f"fa.simulate does not run this attack yet ({e})")
     counts = res.delivered_per_run.astype(float)
@@ -189,7 +195,9 @@ def imhof(lam, b, delta, x):
 
     def f(u):
         th = 0.5 * np.sum(np.arctan(lam * u) + b**2 * lam * u / (1 + lam**2 * u**2)) - 0.5 * (x - delta) * u
-        rho = np.prod((1 + lam**2 * u**2) ** 0.25) * np.exp(0.5 * np.sum((b * lam * u) ** 2 / (1 + lam**2 * u**2)))
+        rho = np.prod((1 + lam**2 * u**2) ** 0.25) * np.exp(
+            0.5 * np.sum((b * lam * u) ** 2 / (1 + lam**2 * u**2))
+        )
         return np.sin(th) / (u * rho)
 
     v, _ = integrate.quad(f, 0, 200, limit=2000)
@@ -214,10 +222,14 @@ def test_saddlepoint_tail_against_imhof(case):
 def test_tail_special_cases():
     for k in (1, 3, 10):
         for x in (0.5, k, 2 * k + 5):
-            assert_allclose(_quadform.tail(np.ones((1, k)), np.zeros((1, k)), 0.0, x)[0],
-                            stats.chi2.sf(x, k), rtol=0.03)
-    assert_allclose(_quadform.tail(np.ones((1, 5)), [[3.0, 0, 0, 0, 0]], 0.0, 20.0)[0],
-                    stats.ncx2.sf(20.0, 5, 9.0), rtol=0.01)
+            assert_allclose(
+                _quadform.tail(np.ones((1, k)), np.zeros((1, k)), 0.0, x)[0], stats.chi2.sf(x, k), rtol=0.03
+            )
+    assert_allclose(
+        _quadform.tail(np.ones((1, 5)), [[3.0, 0, 0, 0, 0]], 0.0, 20.0)[0],
+        stats.ncx2.sf(20.0, 5, 9.0),
+        rtol=0.01,
+    )
     assert _quadform.tail(np.zeros((1, 3)), np.zeros((1, 3)), 2.0, 1.0)[0] == 1.0
     assert _quadform.tail(np.ones((1, 3)), np.zeros((1, 3)), 2.0, 1.0)[0] == 1.0
 
@@ -317,7 +329,9 @@ def test_detection_probability_by_monte_carlo_of_the_normal_model():
 def test_false_alarm_rates_are_alpha():
     for n in (1000, 5000):
         for alpha in (0.01, 0.05):
-            assert fa.detection_probability(0.5, 2, None, n, alpha, test="interval") == pytest.approx(alpha, rel=1e-6)
+            assert fa.detection_probability(0.5, 2, None, n, alpha, test="interval") == pytest.approx(
+                alpha, rel=1e-6
+            )
             p = fa.detection_probability(0.5, 2, None, n, alpha, test="count")
             assert 0.8 * alpha < p < 1.2 * alpha
 

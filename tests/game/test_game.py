@@ -66,13 +66,22 @@ def test_policies_print_and_validate():
 # The payoff formula.
 
 
-@pytest.mark.parametrize("policy", [
-    fa.SensorPolicy("count", 0.01, 2), fa.SensorPolicy("interval", 0.05, 3),
-    fa.SensorPolicy("count", 0.01, 4, "harmful"), fa.SensorPolicy("interval", 0.01, 1, "harmful"),
-    fa.SensorPolicy("count", 0.05, 0), fa.SensorPolicy("never"), fa.SensorPolicy("offline"),
-], ids=str)
-@pytest.mark.parametrize("attack", [None, fa.PeriodicBlocking(1, 5), fa.RandomBlocking(0.4),
-                                    fa.FlagInjection(0.05)], ids=str)
+@pytest.mark.parametrize(
+    "policy",
+    [
+        fa.SensorPolicy("count", 0.01, 2),
+        fa.SensorPolicy("interval", 0.05, 3),
+        fa.SensorPolicy("count", 0.01, 4, "harmful"),
+        fa.SensorPolicy("interval", 0.01, 1, "harmful"),
+        fa.SensorPolicy("count", 0.05, 0),
+        fa.SensorPolicy("never"),
+        fa.SensorPolicy("offline"),
+    ],
+    ids=str,
+)
+@pytest.mark.parametrize(
+    "attack", [None, fa.PeriodicBlocking(1, 5), fa.RandomBlocking(0.4), fa.FlagInjection(0.05)], ids=str
+)
 def test_payoff_is_the_window_chain_average(paper, policy, attack):
     p = fa.game_payoff(paper, LAM, RATIO, policy, attack, 1000)
     j_off = fa.j_offline(paper, LAM, RATIO)
@@ -82,9 +91,20 @@ def test_payoff_is_the_window_chain_average(paper, policy, attack):
     j_att = fa.j_attack(paper, LAM, 2, attack=attack) if attack else fa.j_online(paper, LAM, 2)
     hp_att = fa.high_power_rate(LAM, 2, attack)
     k = 0 if policy.special else policy.fallback
-    d = 0.0 if policy.special else fa.detection_probability(
-        LAM, 2, attack, 1000, policy.alpha, policy.test, policy.alternative,
-        beta_bar=fa.choose_schedule(paper, LAM, RATIO, 0).beta_bar if policy.rule == "harmful" else None)
+    d = (
+        0.0
+        if policy.special
+        else fa.detection_probability(
+            LAM,
+            2,
+            attack,
+            1000,
+            policy.alpha,
+            policy.test,
+            policy.alternative,
+            beta_bar=fa.choose_schedule(paper, LAM, RATIO, 0).beta_bar if policy.rule == "harmful" else None,
+        )
+    )
     j, hp = _chain_payoff(j_att, j_off, hp_att, 1 / 7, d, k)
     assert p.detection == pytest.approx(d, abs=1e-12)
     assert p.j == pytest.approx(j, rel=1e-12) and p.high_power == pytest.approx(hp, rel=1e-12)
@@ -106,11 +126,18 @@ def test_weak_attackers_want_to_be_seen_by_any_alarm_but_not_by_harmful_ones(pap
 # Detection probabilities against simulated windows.
 
 DETECTION_CASES = [
-    (None, "count", 0.01), (None, "interval", 0.01), (None, "count", 0.05), (None, "interval", 0.05),
-    (fa.PeriodicBlocking(1, 5), "count", 0.01), (fa.PeriodicBlocking(1, 5), "interval", 0.01),
-    (fa.PeriodicBlocking(3, 20), "count", 0.01), (fa.PeriodicBlocking(3, 20), "interval", 0.01),
-    (fa.RandomBlocking(0.15), "count", 0.01), (fa.RandomBlocking(0.15), "interval", 0.01),
-    (fa.FlagInjection(0.02), "count", 0.01), (fa.FlagInjection(0.02), "interval", 0.01),
+    (None, "count", 0.01),
+    (None, "interval", 0.01),
+    (None, "count", 0.05),
+    (None, "interval", 0.05),
+    (fa.PeriodicBlocking(1, 5), "count", 0.01),
+    (fa.PeriodicBlocking(1, 5), "interval", 0.01),
+    (fa.PeriodicBlocking(3, 20), "count", 0.01),
+    (fa.PeriodicBlocking(3, 20), "interval", 0.01),
+    (fa.RandomBlocking(0.15), "count", 0.01),
+    (fa.RandomBlocking(0.15), "interval", 0.01),
+    (fa.FlagInjection(0.02), "count", 0.01),
+    (fa.FlagInjection(0.02), "interval", 0.01),
     (fa.rate_matching_attack(LAM, 2, 0.3), "count", 0.01),
     (fa.rate_matching_attack(LAM, 2, 0.3), "interval", 0.01),
 ]
@@ -123,9 +150,21 @@ def test_detection_probability_against_simulated_windows(attack, test, alpha):
     # the interval test's shows a bias of up to 6%, about 5 standard errors: README).
     n, runs = 1000, 40_000 if attack is None else 4000
     # detection_rates simulates attack-free windows beside; the attack-free case reads those.
-    sim = fa.detection_rates(LAM, 2, attack or fa.PeriodicBlocking(0, 1), n, runs, alpha=alpha, seed=21,
-                             test=test, alternative="two-sided", burn_in=n)
-    rate, se = (sim.false_alarm, sim.false_alarm_stderr) if attack is None else (sim.detection, sim.detection_stderr)
+    sim = fa.detection_rates(
+        LAM,
+        2,
+        attack or fa.PeriodicBlocking(0, 1),
+        n,
+        runs,
+        alpha=alpha,
+        seed=21,
+        test=test,
+        alternative="two-sided",
+        burn_in=n,
+    )
+    rate, se = (
+        (sim.false_alarm, sim.false_alarm_stderr) if attack is None else (sim.detection, sim.detection_stderr)
+    )
     p = fa.detection_probability(LAM, 2, attack, n, alpha, test)
     assert abs(rate - p) <= 3 * max(se, math.sqrt(p * (1 - p) / runs)) + 1e-9, (rate, se, p)
     if attack is None:
@@ -134,8 +173,18 @@ def test_detection_probability_against_simulated_windows(attack, test, alpha):
 
 def test_false_alarms_for_longer_windows():
     for test in ("count", "interval"):
-        sim = fa.detection_rates(LAM, 2, fa.PeriodicBlocking(0, 1), 5000, 2000, alpha=0.05, seed=5,
-                                 test=test, alternative="two-sided", burn_in=1000)
+        sim = fa.detection_rates(
+            LAM,
+            2,
+            fa.PeriodicBlocking(0, 1),
+            5000,
+            2000,
+            alpha=0.05,
+            seed=5,
+            test=test,
+            alternative="two-sided",
+            burn_in=1000,
+        )
         assert 0.025 <= sim.false_alarm <= 0.075
 
 
@@ -169,7 +218,9 @@ def test_closed_loop_agrees_with_the_payoff(paper, policy, attack):
     # one fall-back window an even number of windows holds whole cycles.
     n = 10_000
     p = fa.game_payoff(paper, LAM, RATIO, policy, attack, n)
-    sim = fa.simulate_game(paper, LAM, RATIO, policy, attack, 100 * n, 256, seed=31, n_steps=n, burn_in=10 * n)
+    sim = fa.simulate_game(
+        paper, LAM, RATIO, policy, attack, 100 * n, 256, seed=31, n_steps=n, burn_in=10 * n
+    )
     assert abs(sim.j - p.j) < 4 * sim.stderr, (sim.j, sim.stderr, p.j)
     assert abs(sim.high_power - p.high_power) < 4 * sim.high_power_stderr + 2e-4
     if not policy.special:
@@ -210,8 +261,15 @@ def test_closed_loop_ctrl_c(paper, monkeypatch):
 # ---------------------------------------------------------------------------------------------
 # Solving the game.
 
-ATTACKS = [None, fa.PeriodicBlocking(1, 5), fa.PeriodicBlocking(1, 3), fa.RandomBlocking(0.2),
-           fa.RandomBlocking(0.3), fa.FlagInjection(0.05), fa.rate_matching_attack(LAM, 2, 0.2)]
+ATTACKS = [
+    None,
+    fa.PeriodicBlocking(1, 5),
+    fa.PeriodicBlocking(1, 3),
+    fa.RandomBlocking(0.2),
+    fa.RandomBlocking(0.3),
+    fa.FlagInjection(0.05),
+    fa.rate_matching_attack(LAM, 2, 0.2),
+]
 
 
 def test_solution_meets_the_minimax_conditions(paper):
@@ -247,8 +305,9 @@ def test_value_is_offline_or_the_strongest_attack(paper):
 
 def test_a_game_without_strong_attacks_stays_online(paper):
     # With attacks weaker than the offline schedule's cost, the sensor never needs to go offline.
-    sol = fa.solve_game(paper, LAM, RATIO, 1000, [0.01], [2], [None, fa.PeriodicBlocking(1, 5)],
-                        rules=["harmful"])
+    sol = fa.solve_game(
+        paper, LAM, RATIO, 1000, [0.01], [2], [None, fa.PeriodicBlocking(1, 5)], rules=["harmful"]
+    )
     assert sol.value < fa.j_offline(paper, LAM, RATIO)
     assert sol.sensor_strategy[0] < 1e-9
 
@@ -360,9 +419,15 @@ def test_game_command(tmp_path, capsys):
 def test_game_section_errors_name_the_key(tmp_path, capsys):
     from fakeack.cli import main
 
-    for bad, key in (("alphas = [1.5]", "alphas[0]"), ("fallbacks = [-1]", "fallbacks[0]"),
-                     ("attacks = []", "attacks"), ("attacks = ['9/5']", "attacks[0]"),
-                     ("n_steps = 0", "n_steps"), ("tests = ['shape']", "tests[0]"), ("windows = 3", "windows")):
+    for bad, key in (
+        ("alphas = [1.5]", "alphas[0]"),
+        ("fallbacks = [-1]", "fallbacks[0]"),
+        ("attacks = []", "attacks"),
+        ("attacks = ['9/5']", "attacks[0]"),
+        ("n_steps = 0", "n_steps"),
+        ("tests = ['shape']", "tests[0]"),
+        ("windows = 3", "windows"),
+    ):
         cfg = tmp_path / "bad.toml"
         cfg.write_text(SMALL_GAME.split("[game]")[0] + "[game]\n" + bad + "\n")
         assert main(["game", str(cfg)]) == 2

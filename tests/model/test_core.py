@@ -82,8 +82,7 @@ def test_vector_traces():
 def test_marginally_detectable_and_stable_zero_noise():
     # Eigenvalue on the unit circle, observed: converges.
     s = fa.LinearSystem(np.diag([1.0, 0.5]), [[1.0, 1.0]], np.eye(2), 1.0)
-    assert_allclose(s.pbar, ref.pbar_scipy(np.diag([1.0, 0.5]), [[1.0, 1.0]], np.eye(2), 1.0),
-                    rtol=1e-9)
+    assert_allclose(s.pbar, ref.pbar_scipy(np.diag([1.0, 0.5]), [[1.0, 1.0]], np.eye(2), 1.0), rtol=1e-9)
     # Q = 0 with stable A: P̄ = 0.
     z = fa.LinearSystem(0.5, 1.0, 0.0, 1.0)
     assert z.pbar[0, 0] == pytest.approx(0.0, abs=1e-15)
@@ -155,8 +154,9 @@ def test_offline_schedule_counts(q):
         assert s.shape == (q,) and s.sum() == p and s[0] == 1
 
 
-@pytest.mark.parametrize("ratio", [Fraction(1, 7), Fraction(2, 7), Fraction(3, 8), Fraction(5, 12),
-                                   Fraction(1, 2), Fraction(4, 5)])
+@pytest.mark.parametrize(
+    "ratio", [Fraction(1, 7), Fraction(2, 7), Fraction(3, 8), Fraction(5, 12), Fraction(1, 2), Fraction(4, 5)]
+)
 @pytest.mark.parametrize("lam", [0.2, 0.5, 0.8])
 def test_j_offline_equals_direct_average(paper, ratio, lam):
     pattern = fa.offline_schedule(ratio)
@@ -196,7 +196,8 @@ def test_online_formulas_against_chain(paper, z0, mu, lam):
 def test_online_model_note_checks():
     assert fa.online_high_power_rate(0.5, 2) == pytest.approx(1 / 7, rel=1e-15)
     assert fa.online_high_power_rate(0.3, 3, 0.0) == pytest.approx(
-        fa.online_high_power_rate(0.3, 4, 1.0), rel=1e-15)
+        fa.online_high_power_rate(0.3, 4, 1.0), rel=1e-15
+    )
 
 
 @pytest.mark.parametrize("lam", [0.5, 0.3, Fraction(2, 3), 0.05])
@@ -330,27 +331,41 @@ def test_j_max_vector():
 def test_chain_paper_example():
     lam = 0.37
     l, a = lam, 1 - lam
-    Ts = np.array([  # the paper's column-stochastic matrix with Model note 4 applied
-        [l, l, 0, 0, 0, 0, 0, 0, 0, 0, 1],
-        [a, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, a, 0, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, l, l, l, 0, l, 0, 0, 0, 0],
-        [0, 0, 0, a, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, a, 0, 0, 0, 0, 0, 0],
-        [0, 0, a, 0, 0, 0, 0, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 0, a, 0, 0, 0, 0],
-        [0, 0, 0, 0, 0, 1, 0, 1, l, l, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, a, 0, 0],
-        [0, 0, 0, 0, 0, 0, 0, 0, 0, a, 0],
-    ])
+    Ts = np.array(
+        [  # the paper's column-stochastic matrix with Model note 4 applied
+            [l, l, 0, 0, 0, 0, 0, 0, 0, 0, 1],
+            [a, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0],
+            [0, a, 0, 0, 0, 0, 0, 0, 0, 0, 0],
+            [0, 0, l, l, l, 0, l, 0, 0, 0, 0],
+            [0, 0, 0, a, 0, 0, 0, 0, 0, 0, 0],
+            [0, 0, 0, 0, a, 0, 0, 0, 0, 0, 0],
+            [0, 0, a, 0, 0, 0, 0, 0, 0, 0, 0],
+            [0, 0, 0, 0, 0, 0, a, 0, 0, 0, 0],
+            [0, 0, 0, 0, 0, 1, 0, 1, l, l, 0],
+            [0, 0, 0, 0, 0, 0, 0, 0, a, 0, 0],
+            [0, 0, 0, 0, 0, 0, 0, 0, 0, a, 0],
+        ]
+    )
     states, T = fa.attack_chain(lam, 2, 1, 3)
-    assert states.tolist() == [[0, 0], [1, 0], [2, 0], [0, 1], [1, 1], [2, 1], [3, 1], [4, 1],
-                               [0, 2], [1, 2], [2, 2]]
+    assert states.tolist() == [
+        [0, 0],
+        [1, 0],
+        [2, 0],
+        [0, 1],
+        [1, 1],
+        [2, 1],
+        [3, 1],
+        [4, 1],
+        [0, 2],
+        [1, 2],
+        [2, 2],
+    ]
     assert_allclose(T.toarray(), Ts.T, atol=0)
 
 
-@pytest.mark.parametrize("z0,r,t", [(1, 0, 1), (2, 1, 3), (2, 2, 3), (3, 4, 7), (1, 5, 6),
-                                    (4, 2, 9), (2, 4, 6), (2, 0, 5)])
+@pytest.mark.parametrize(
+    "z0,r,t", [(1, 0, 1), (2, 1, 3), (2, 2, 3), (3, 4, 7), (1, 5, 6), (4, 2, 9), (2, 4, 6), (2, 0, 5)]
+)
 def test_chain_matches_exploration(z0, r, t):
     lam = 0.42
     states, T = fa.attack_chain(lam, z0, r, t)
@@ -368,16 +383,19 @@ def test_chain_too_large_refused():
         fa.attack_chain(0.5, 2, 10_000, 20_000)
 
 
-@pytest.mark.parametrize("bad, exc, name", [
-    ((1.5, 2, 1, 3), ValueError, "lam"),
-    ((0.5, 0, 1, 3), ValueError, "z0"),
-    ((0.5, -1, 1, 3), ValueError, "z0"),
-    ((0.5, 2, 3, 3), ValueError, "r"),
-    ((0.5, 2, 1, 0), ValueError, "t"),
-    ((0.5, 2.5, 1, 3), TypeError, "z0"),
-    ((0.5, 2, "1", 3), TypeError, "r"),
-    ((None, 2, 1, 3), TypeError, "lam"),
-])
+@pytest.mark.parametrize(
+    "bad, exc, name",
+    [
+        ((1.5, 2, 1, 3), ValueError, "lam"),
+        ((0.5, 0, 1, 3), ValueError, "z0"),
+        ((0.5, -1, 1, 3), ValueError, "z0"),
+        ((0.5, 2, 3, 3), ValueError, "r"),
+        ((0.5, 2, 1, 0), ValueError, "t"),
+        ((0.5, 2.5, 1, 3), TypeError, "z0"),
+        ((0.5, 2, "1", 3), TypeError, "r"),
+        ((None, 2, 1, 3), TypeError, "lam"),
+    ],
+)
 def test_chain_bad_input(bad, exc, name):
     with pytest.raises(exc, match=names(name)):
         fa.attack_chain(*bad)
@@ -427,7 +445,8 @@ def test_j_attack_sanity_laws(paper):
     # Rising in r for fixed t, towards J_max as r/t -> 1 with t large.
     t = 400
     js = [fa.j_attack(paper, lam, z0, r, t) for r in range(0, t, 20)] + [
-        fa.j_attack(paper, lam, z0, t - 1, t)]
+        fa.j_attack(paper, lam, z0, t - 1, t)
+    ]
     assert np.all(np.diff(js) > 0)
     jmax = fa.j_max(paper, lam)
     assert js[-1] < jmax and js[-1] > 0.99 * jmax

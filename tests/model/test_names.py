@@ -37,8 +37,9 @@ def test_one_high_power_rate():
     assert fa.high_power_rate(0.5, 2) == pytest.approx(1 / 7, rel=1e-15)
     assert fa.online_high_power_rate(0.5, 2) == fa.high_power_rate(0.5, 2, None)
     # the closed form against the attack chain's stationary law without attack
-    assert fa.high_power_rate(0.5, 3, None, 0.25) == pytest.approx(fa.flag_rates(0.5, 3, None, 0.25).delivered,
-                                                                   rel=1e-13)
+    assert fa.high_power_rate(0.5, 3, None, 0.25) == pytest.approx(
+        fa.flag_rates(0.5, 3, None, 0.25).delivered, rel=1e-13
+    )
     att = fa.PeriodicBlocking(1, 5)
     assert fa.delivered_flag_rate(0.5, 2, att) == fa.high_power_rate(0.5, 2, att)
     # blocking 1 of every 5 flags delivers 4/5 of those sent

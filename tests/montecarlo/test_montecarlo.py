@@ -26,16 +26,19 @@ def close(res, expected, k=4.0):
 @pytest.mark.parametrize("protocol", ["B", "A"])
 def test_paper_example_all_schedules(paper, protocol):
     lam, z0 = PAPER_LAM, 2
-    close(fa.simulate(paper, lam, fa.OfflineSchedule(PAPER_RATIO), H, RUNS, seed=1, protocol=protocol),
-          fa.j_offline(paper, lam, PAPER_RATIO))
+    close(
+        fa.simulate(paper, lam, fa.OfflineSchedule(PAPER_RATIO), H, RUNS, seed=1, protocol=protocol),
+        fa.j_offline(paper, lam, PAPER_RATIO),
+    )
     on = fa.simulate(paper, lam, fa.OnlineSchedule(z0), H, RUNS, seed=2, protocol=protocol)
     close(on, fa.j_online(paper, lam, z0))
     assert on.high_power_rate == pytest.approx(1 / 7, abs=4e-3)
     # One seed per attack: with a shared seed the three checks would share one random stream and
     # could pass or fail together by one fluke.
     for seed, (r, t) in enumerate([(1, 5), (2, 3), (1, 3)], start=3):
-        res = fa.simulate(paper, lam, fa.OnlineSchedule(z0), H, RUNS, seed=seed, attack=(r, t),
-                          protocol=protocol)
+        res = fa.simulate(
+            paper, lam, fa.OnlineSchedule(z0), H, RUNS, seed=seed, attack=(r, t), protocol=protocol
+        )
         close(res, fa.j_attack(paper, lam, z0, r, t))
         assert res.flags_blocked / res.flags_sent == pytest.approx(r / t, rel=0.02)
 
@@ -51,16 +54,17 @@ def test_every_flag_blocked_is_j_max(paper):
     Kills: a 1% error in the all-blocked simulation or in j_max (e.g. J_max's Stein equation
     with lam P̄ + Q for lam P̄ + a Q)."""
     lam, horizon = 0.8, 400
-    res = fa.simulate(paper, lam, fa.OnlineSchedule(2), horizon, 400_000, seed=8,
-                      attack=fa.MaskBlocking([1]))
+    res = fa.simulate(paper, lam, fa.OnlineSchedule(2), horizon, 400_000, seed=8, attack=fa.MaskBlocking([1]))
     a = 1 - lam
     tr = ref.traces(1.2, 0.8, paper.pbar, 200)
     j_max = sum(lam * a**i * tr[i] for i in range(201))
     assert_allclose(fa.j_max(paper, lam), j_max, rtol=1e-12)
     # E Tr P_k for the walk started at tau = 0 (high power at k = 1): law of tau_k is
     # lam a^i for i < k - 1 and a^(k-1) at i = k - 1.
-    e = [sum(lam * a**i * tr[i] for i in range(k - 1)) + a ** (k - 1) * tr[k - 1] if k <= 200 else j_max
-         for k in range(1, horizon + 1)]
+    e = [
+        sum(lam * a**i * tr[i] for i in range(k - 1)) + a ** (k - 1) * tr[k - 1] if k <= 200 else j_max
+        for k in range(1, horizon + 1)
+    ]
     exact_h = float(np.mean(e))
     assert res.stderr < 1e-3 * exact_h
     close(res, exact_h)
@@ -91,10 +95,14 @@ def test_random_small_systems():
     for i in range(4):
         s = fa.LinearSystem(*random_system(rng, int(rng.integers(2, 4))))
         lam = float(rng.uniform(0.4, 0.8))
-        close(fa.simulate(s, lam, fa.OfflineSchedule(Fraction(1, 4)), H, RUNS, seed=i),
-              fa.j_offline(s, lam, Fraction(1, 4)))
-        close(fa.simulate(s, lam, fa.OnlineSchedule(2), H, RUNS, seed=i, attack=(3, 4)),
-              fa.j_attack(s, lam, 2, 3, 4))
+        close(
+            fa.simulate(s, lam, fa.OfflineSchedule(Fraction(1, 4)), H, RUNS, seed=i),
+            fa.j_offline(s, lam, Fraction(1, 4)),
+        )
+        close(
+            fa.simulate(s, lam, fa.OnlineSchedule(2), H, RUNS, seed=i, attack=(3, 4)),
+            fa.j_attack(s, lam, 2, 3, 4),
+        )
 
 
 @pytest.mark.parametrize("n", [1, 2, 3])
@@ -120,7 +128,7 @@ def test_exact_curve_converges_to_stationary(paper):
         c = fa.expected_trace_curve(paper, 0.5, sched, 20000, attack=attack)
         assert c.trace[0] == pytest.approx(paper.pbar[0, 0])  # high power at k = 1
         # E Tr P_k converges geometrically (the offline one is periodic: compare a period mean).
-        tail = c.trace[-7 * 100:].mean()
+        tail = c.trace[-7 * 100 :].mean()
         assert tail == pytest.approx(j, rel=1e-9)
         assert abs(c.j_k[-1] - j) < 2e-4 * j  # the 1/k transient of the running mean
 
@@ -130,20 +138,25 @@ def test_monte_carlo_curve_pointwise(paper):
     independent replicates."""
     horizon, reps = 60, 16
     exact = fa.expected_trace_curve(paper, 0.5, fa.OnlineSchedule(2), horizon, attack=(2, 3)).j_k
-    curves = np.array([
-        fa.simulate(paper, 0.5, fa.OnlineSchedule(2), horizon, 4000, seed=100 + i, attack=(2, 3)).j_k
-        for i in range(reps)
-    ])
+    curves = np.array(
+        [
+            fa.simulate(paper, 0.5, fa.OnlineSchedule(2), horizon, 4000, seed=100 + i, attack=(2, 3)).j_k
+            for i in range(reps)
+        ]
+    )
     mean, se = curves.mean(axis=0), curves.std(axis=0, ddof=1) / np.sqrt(reps)
     assert np.all(np.abs(mean - exact) <= 5 * se + 1e-12)
     assert curves[0][0] == pytest.approx(paper.pbar[0, 0])
 
 
-@pytest.mark.parametrize("mode, sched, attack, runs", [
-    ("covariance", fa.OnlineSchedule(2), (1, 5), 2000),  # bit-sliced kernel
-    ("covariance", fa.OnlineSchedule(2, 0.4), (2, 7), 2000),  # lane kernels
-    ("state", fa.OnlineSchedule(2), (1, 3), 500),
-])
+@pytest.mark.parametrize(
+    "mode, sched, attack, runs",
+    [
+        ("covariance", fa.OnlineSchedule(2), (1, 5), 2000),  # bit-sliced kernel
+        ("covariance", fa.OnlineSchedule(2, 0.4), (2, 7), 2000),  # lane kernels
+        ("state", fa.OnlineSchedule(2), (1, 3), 500),
+    ],
+)
 def test_standard_error_is_calibrated(paper, mode, sched, attack, runs):
     """Over 30 seeds, the spread of J divided by the mean reported standard error lies in
     [0.7, 1.4] (the sample spread of 30 values is itself uncertain by 13%, so this is about
@@ -174,8 +187,11 @@ def test_seed_determinism_and_thread_independence(paper):
     outs = []
     for threads in ("1", "2"):
         env = dict(os.environ, RAYON_NUM_THREADS=threads)
-        outs.append(subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
-                                   text=True, check=True).stdout)
+        outs.append(
+            subprocess.run(
+                [sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True
+            ).stdout
+        )
     assert outs[0] == outs[1] == f"{a.j!r} {float(a.j_k.sum())!r}\n"
     c = fa.simulate(paper, 0.5, fa.OnlineSchedule(2), 200, 20000, seed=43, attack=(1, 5))
     assert c.j != a.j
@@ -261,16 +277,19 @@ def test_progress_callback_error_cancels(paper, monkeypatch):
     assert time.monotonic() - t0 < 2.0
 
 
-@pytest.mark.parametrize("kw, exc, name", [
-    (dict(horizon=0), ValueError, "horizon"),
-    (dict(runs=0), ValueError, "runs"),
-    (dict(horizon=10**12), ValueError, "horizon"),
-    (dict(seed=-1), ValueError, "seed"),
-    (dict(mode="exact"), ValueError, "mode"),
-    (dict(protocol="C"), ValueError, "protocol"),
-    (dict(attack=(3, 2)), ValueError, "r"),
-    (dict(attack=[1, 0]), TypeError, "attack"),
-])
+@pytest.mark.parametrize(
+    "kw, exc, name",
+    [
+        (dict(horizon=0), ValueError, "horizon"),
+        (dict(runs=0), ValueError, "runs"),
+        (dict(horizon=10**12), ValueError, "horizon"),
+        (dict(seed=-1), ValueError, "seed"),
+        (dict(mode="exact"), ValueError, "mode"),
+        (dict(protocol="C"), ValueError, "protocol"),
+        (dict(attack=(3, 2)), ValueError, "r"),
+        (dict(attack=[1, 0]), TypeError, "attack"),
+    ],
+)
 def test_bad_input(paper, kw, exc, name):
     args = dict(horizon=10, runs=10)
     args.update(kw)

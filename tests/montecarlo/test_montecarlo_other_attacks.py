@@ -71,50 +71,108 @@ def check_against_exact(system, lam, attack, mu, res):
 def test_covariance_mode_matches_the_exact_cost_and_rate(system_name, attack, mu):
     system = SYSTEMS[system_name]()
     seed = 100 + 20 * list(SYSTEMS).index(system_name) + CASES.index((attack, mu))
-    res = fa.simulate(system, PAPER_LAM, fa.OnlineSchedule(Z0, mu), H, RUNS, seed=seed, attack=attack,
-                      progress=False, record_runs=True)
+    res = fa.simulate(
+        system,
+        PAPER_LAM,
+        fa.OnlineSchedule(Z0, mu),
+        H,
+        RUNS,
+        seed=seed,
+        attack=attack,
+        progress=False,
+        record_runs=True,
+    )
     check_against_exact(system, PAPER_LAM, attack, mu, res)
 
 
-@pytest.mark.parametrize(("attack", "mu", "seed"), [
-    (fa.RandomBlocking(0.7), 0.4, 201),
-    (fa.FlagInjection(0.3, fa.RandomBlocking(0.3)), 1.0, 202),
-    (fa.FlagInjection(0.05, fa.MaskBlocking([1, 0, 1, 1, 0])), 1.0, 203),
-])
+@pytest.mark.parametrize(
+    ("attack", "mu", "seed"),
+    [
+        (fa.RandomBlocking(0.7), 0.4, 201),
+        (fa.FlagInjection(0.3, fa.RandomBlocking(0.3)), 1.0, 202),
+        (fa.FlagInjection(0.05, fa.MaskBlocking([1, 0, 1, 1, 0])), 1.0, 203),
+    ],
+)
 def test_state_mode_matches_the_exact_cost_and_rate(attack, mu, seed):
     """Real Gaussian errors (their mean square is Tr E[P_k]) on the lane kernels."""
     system = two_state()
-    res = fa.simulate(system, PAPER_LAM, fa.OnlineSchedule(Z0, mu), 20_000, 256, seed=seed, attack=attack,
-                      mode="state", progress=False, record_runs=True)
+    res = fa.simulate(
+        system,
+        PAPER_LAM,
+        fa.OnlineSchedule(Z0, mu),
+        20_000,
+        256,
+        seed=seed,
+        attack=attack,
+        mode="state",
+        progress=False,
+        record_runs=True,
+    )
     check_against_exact(system, PAPER_LAM, attack, mu, res)
 
 
 def test_lane_kernels_in_covariance_mode(paper):
     """A mask with five runs of ones is beyond the bit-sliced kernel: the lane kernels run it."""
     attack = fa.FlagInjection(0.05, fa.MaskBlocking([1, 0] * 5))
-    res = fa.simulate(paper, PAPER_LAM, fa.OnlineSchedule(Z0), 50_000, 256, seed=204, attack=attack,
-                      progress=False, record_runs=True)
+    res = fa.simulate(
+        paper,
+        PAPER_LAM,
+        fa.OnlineSchedule(Z0),
+        50_000,
+        256,
+        seed=204,
+        attack=attack,
+        progress=False,
+        record_runs=True,
+    )
     check_against_exact(paper, PAPER_LAM, attack, 1.0, res)
 
 
 def _fields(res):
-    return (res.j, res.stderr, res.high_power_rate, res.flags_sent, res.flags_blocked, res.flags_forged,
-            res.mean_trace.tobytes(), res.j_k.tobytes(), res.delivered_per_run.tobytes())
+    return (
+        res.j,
+        res.stderr,
+        res.high_power_rate,
+        res.flags_sent,
+        res.flags_blocked,
+        res.flags_forged,
+        res.mean_trace.tobytes(),
+        res.j_k.tobytes(),
+        res.delivered_per_run.tobytes(),
+    )
 
 
 @pytest.mark.parametrize("mode", ["covariance", "state"])
-@pytest.mark.parametrize("attack", [
-    fa.RandomBlocking(0.4),
-    fa.FlagInjection(0.2),
-    fa.FlagInjection(0.1, fa.RandomBlocking(0.5)),
-    fa.FlagInjection(0.1, fa.PeriodicBlocking(1, 3)),
-    fa.FlagInjection(0.1, fa.MaskBlocking([1, 0, 1, 1, 0])),
-], ids=lambda a: a.label)
+@pytest.mark.parametrize(
+    "attack",
+    [
+        fa.RandomBlocking(0.4),
+        fa.FlagInjection(0.2),
+        fa.FlagInjection(0.1, fa.RandomBlocking(0.5)),
+        fa.FlagInjection(0.1, fa.PeriodicBlocking(1, 3)),
+        fa.FlagInjection(0.1, fa.MaskBlocking([1, 0, 1, 1, 0])),
+    ],
+    ids=lambda a: a.label,
+)
 def test_type_a_and_type_b_are_identical(paper, mode, attack):
     """Type A flips ACK bits (1 to 0 to block, 0 to 1 to forge), Type B drops and forges packets:
     different code paths, the same runs draw for draw."""
-    a, b = (fa.simulate(paper, 0.4, fa.OnlineSchedule(Z0, 0.6), 400, 700, seed=205, attack=attack, mode=mode,
-                        protocol=p, progress=False, record_runs=True) for p in "AB")
+    a, b = (
+        fa.simulate(
+            paper,
+            0.4,
+            fa.OnlineSchedule(Z0, 0.6),
+            400,
+            700,
+            seed=205,
+            attack=attack,
+            mode=mode,
+            protocol=p,
+            progress=False,
+            record_runs=True,
+        )
+        for p in "AB"
+    )
     assert _fields(a) == _fields(b)
     assert b.flags_blocked > 0 or isinstance(attack, fa.FlagInjection) and attack.block is None
     assert (b.flags_forged > 0) == isinstance(attack, fa.FlagInjection)
@@ -124,8 +182,17 @@ def test_rate_matching_hides_the_flag_rate_but_not_the_cost(paper):
     """The injection beside blocking 20% of the flags keeps the rate of flag-ACKs reaching the
     sensor at the attack-free rate, while J stays above J_on."""
     attack = fa.rate_matching_attack(PAPER_LAM, Z0, 0.2)
-    res = fa.simulate(paper, PAPER_LAM, fa.OnlineSchedule(Z0), H, RUNS, seed=206, attack=attack,
-                      progress=False, record_runs=True)
+    res = fa.simulate(
+        paper,
+        PAPER_LAM,
+        fa.OnlineSchedule(Z0),
+        H,
+        RUNS,
+        seed=206,
+        attack=attack,
+        progress=False,
+        record_runs=True,
+    )
     reached = res.flags_sent - res.flags_blocked + res.flags_forged
     free = fa.high_power_rate(PAPER_LAM, Z0)  # 1/7: every flag delivered
     se = rate_stderr(res)
@@ -140,6 +207,8 @@ def test_rate_matching_hides_the_flag_rate_but_not_the_cost(paper):
 def test_detection_counts_forged_flags_as_delivered():
     """The flag-count test sees blocking, but not the rate-matching injection beside it."""
     blocked = fa.detection_rates(PAPER_LAM, Z0, fa.RandomBlocking(0.2), runs=500, seed=207)
-    hidden = fa.detection_rates(PAPER_LAM, Z0, fa.rate_matching_attack(PAPER_LAM, Z0, 0.2), runs=500, seed=207)
+    hidden = fa.detection_rates(
+        PAPER_LAM, Z0, fa.rate_matching_attack(PAPER_LAM, Z0, 0.2), runs=500, seed=207
+    )
     assert blocked.detection > 0.6
     assert hidden.detection < 0.06

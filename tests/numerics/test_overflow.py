@@ -45,7 +45,9 @@ def test_j_offline_long_period_is_inf_not_nan(paper):
     0 * (cost of the absent block) was 0 * inf. J is finite but beyond the double range:
     J >= a^τ Tr h^τ(P̄) / q at τ = q - 1 (one term of the only block)."""
     lam, q = 0.25, 16384
-    log_bound = math.log(1 - lam) * (q - 1) + log_trace_lower_bound(1.2, paper.pbar[0, 0], q - 1) - math.log(q)
+    log_bound = (
+        math.log(1 - lam) * (q - 1) + log_trace_lower_bound(1.2, paper.pbar[0, 0], q - 1) - math.log(q)
+    )
     assert log_bound > LOG_DOUBLE_MAX + 500  # e^1250: far beyond a double
     assert fa.j_offline(paper, lam, Fraction(1, q)) == math.inf
 
@@ -78,14 +80,18 @@ def test_long_blocked_runs_are_inf_not_nan(paper):
     t/λ (each level's mass is at most Σ a^τ = 1/λ)."""
     lam, z0, r, t = 0.25, 2, 9999, 10_000
     tau = r * z0 + 1
-    log_bound = tau * math.log(1 - lam) + log_trace_lower_bound(1.2, paper.pbar[0, 0], tau) - math.log(t / lam)
+    log_bound = (
+        tau * math.log(1 - lam) + log_trace_lower_bound(1.2, paper.pbar[0, 0], tau) - math.log(t / lam)
+    )
     assert log_bound > LOG_DOUBLE_MAX + 500
     assert fa.j_attack(paper, lam, z0, r, t) == math.inf
     # Mixed memory: the same walk, τ at least r z0 + 1 after r blocked flags (r = 2999 keeps
     # the O(r^2) cost small; λ = 0.2 makes a ρ² = 1.152).
     lam, r, t = 0.2, 2999, 3000
     tau = r * z0 + 1
-    log_bound = tau * math.log(1 - lam) + log_trace_lower_bound(1.2, paper.pbar[0, 0], tau) - math.log(t / lam)
+    log_bound = (
+        tau * math.log(1 - lam) + log_trace_lower_bound(1.2, paper.pbar[0, 0], tau) - math.log(t / lam)
+    )
     assert log_bound > LOG_DOUBLE_MAX
     assert fa.j_attack(paper, lam, z0, r, t, mu=0.4) == math.inf
     # tiny λ: every step without arrival, so the walk climbs to τ = 3000 > 1950, where
@@ -107,7 +113,9 @@ def test_finite_attack_against_the_independent_chain_near_overflow(big_a):
         if beyond:
             tau = int(taus.max())
             assert states[0] == (0, 0, 0) and pi[0] > 0.05
-            log_bound = math.log(pi[0]) + tau * math.log(1 - lam) + log_trace_lower_bound(30.0, big_a.pbar[0, 0], tau)
+            log_bound = (
+                math.log(pi[0]) + tau * math.log(1 - lam) + log_trace_lower_bound(30.0, big_a.pbar[0, 0], tau)
+            )
             assert log_bound > LOG_DOUBLE_MAX
             assert got == math.inf
         else:
@@ -126,8 +134,9 @@ def test_limit_sweep_threshold_and_decision_never_nan(big_a):
     assert np.isinf(sw.j_attack).any() and np.isfinite(sw.j_attack).any()
     finite = np.flatnonzero(np.isfinite(sw.j_attack))[::50]
     for i in finite:
-        assert_allclose(sw.j_attack[i], fa.j_attack(big_a, 0.5, sw.z0, int(sw.r[i]), int(sw.t[i]), mu=sw.mu),
-                        rtol=1e-12)
+        assert_allclose(
+            sw.j_attack[i], fa.j_attack(big_a, 0.5, sw.z0, int(sw.r[i]), int(sw.t[i]), mu=sw.mu), rtol=1e-12
+        )
     bar = fa.beta_bar(big_a, 0.25, Fraction(1, 1000), t_max=200)
     assert bar.j_offline == math.inf and bar.j_max == math.inf and not math.isnan(bar.limit)
     d = fa.choose_schedule(big_a, 0.25, Fraction(1, 1000), 0.3)
@@ -198,7 +207,9 @@ def test_estimate_beta_when_the_two_regimes_have_equal_rates():
     assert f_on == f_blk
     n = 4 * 10**18  # f n = 4 flags expected
     for delivered in (0, 1, 3):
-        assert fa.estimate_beta(delivered, n, lam, 1, 0.0) == pytest.approx(1 - delivered / n / f_on, rel=1e-12)
+        assert fa.estimate_beta(delivered, n, lam, 1, 0.0) == pytest.approx(
+            1 - delivered / n / f_on, rel=1e-12
+        )
     assert fa.estimate_beta(10, 1000, lam, 1, 0.0) == 0.0  # ρ/f = 1e16: formerly 1/0
 
 
@@ -230,8 +241,16 @@ A_VALUES = st.sampled_from([0.5, 0.99, 1.2, 3.0, 30.0])
 @example(A=30.0, lam=0.5, p=1, q=1024, z0=1000, t=3, r=2, mu=1.0)  # J_on beyond range: J_inf(0) was NaN
 @example(A=30.0, lam=0.5, p=1, q=2049, z0=60, t=3, r=1, mu=0.5)
 @example(A=0.99, lam=1 - 1e-9, p=1, q=3, z0=1, t=2, r=1, mu=0.0)
-@given(A=A_VALUES, lam=st.floats(1e-12, 1 - 1e-9), p=st.integers(1, 3), q=st.integers(2, 2**14),
-       z0=st.integers(1, 60), t=st.integers(2, 3000), r=st.integers(0, 2999), mu=st.floats(0.0, 1.0))
+@given(
+    A=A_VALUES,
+    lam=st.floats(1e-12, 1 - 1e-9),
+    p=st.integers(1, 3),
+    q=st.integers(2, 2**14),
+    z0=st.integers(1, 60),
+    t=st.integers(2, 3000),
+    r=st.integers(0, 2999),
+    mu=st.floats(0.0, 1.0),
+)
 def test_costs_are_never_nan(A, lam, p, q, z0, t, r, mu):
     """Every cost is a number >= 0 or +inf, whatever the corner; J_on <= J_attack <= J_max."""
     s = _system(A)

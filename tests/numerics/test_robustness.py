@@ -39,8 +39,9 @@ def test_stationary_properties(lam, z0, t, data):
 
 
 @FAST
-@given(s=systems(), lam=st.floats(0.05, 0.95), z0=st.integers(1, 8), t=st.integers(2, 60),
-       mu=st.floats(0.0, 1.0))
+@given(
+    s=systems(), lam=st.floats(0.05, 0.95), z0=st.integers(1, 8), t=st.integers(2, 60), mu=st.floats(0.0, 1.0)
+)
 def test_cost_properties(s, lam, z0, t, mu):
     assert s.residual < 1e-10
     jon = fa.j_online(s, lam, z0, mu)
@@ -63,8 +64,7 @@ def test_sweep_agrees_with_single_calls(s, lam, data):
         return
     sw = fa.beta_sweep(s, lam, ratio, t_max=25)
     i = data.draw(st.integers(0, len(sw) - 1))
-    assert_allclose(sw.j_attack[i], fa.j_attack(s, lam, z0, int(sw.r[i]), int(sw.t[i]), mu=mu),
-                    rtol=1e-11)
+    assert_allclose(sw.j_attack[i], fa.j_attack(s, lam, z0, int(sw.r[i]), int(sw.t[i]), mu=mu), rtol=1e-11)
 
 
 # ---------------------------------------------------------------- edge cases with defined answers
@@ -82,8 +82,11 @@ def test_extreme_lambda(paper, lam):
 
 def test_z0_one_and_boundary_r(paper):
     for r in (0, 6):
-        assert_allclose(fa.stationary_distribution(0.3, 1, r, 7),
-                        fa.stationary_distribution(0.3, 1, r, 7, method="gth"), atol=1e-13)
+        assert_allclose(
+            fa.stationary_distribution(0.3, 1, r, 7),
+            fa.stationary_distribution(0.3, 1, r, 7, method="gth"),
+            atol=1e-13,
+        )
     assert fa.j_attack(paper, 0.5, 1, 0, 7) == pytest.approx(fa.j_online(paper, 0.5, 1), rel=1e-13)
 
 
@@ -95,8 +98,12 @@ def test_unstable_all_blocked_but_finite_attack():
 
 def test_near_singular_r():
     s = fa.LinearSystem(np.diag([1.1, 0.5]), np.eye(2), np.eye(2), np.diag([1.0, 1e-10]))
-    assert_allclose(s.pbar, ref.pbar_scipy(np.diag([1.1, 0.5]), np.eye(2), np.eye(2),
-                                           np.diag([1.0, 1e-10])), rtol=1e-6, atol=1e-12)
+    assert_allclose(
+        s.pbar,
+        ref.pbar_scipy(np.diag([1.1, 0.5]), np.eye(2), np.eye(2), np.diag([1.0, 1e-10])),
+        rtol=1e-6,
+        atol=1e-12,
+    )
     assert s.residual < 1e-8
 
 
@@ -112,8 +119,18 @@ def test_non_coprime_is_not_reduced(paper):
     assert fa.num_states(2, 2, 4) == 2 * 3 * 2 // 2 + 4 * 3
 
 
-@pytest.mark.parametrize("A", [1.2, 6 / 5, [[1.2]], np.array([[1.2]]), np.array([[1.2]], dtype=np.float32),
-                               Fraction(6, 5), np.float64(1.2)])
+@pytest.mark.parametrize(
+    "A",
+    [
+        1.2,
+        6 / 5,
+        [[1.2]],
+        np.array([[1.2]]),
+        np.array([[1.2]], dtype=np.float32),
+        Fraction(6, 5),
+        np.float64(1.2),
+    ],
+)
 def test_input_kinds(A):
     s = fa.LinearSystem(A, 0.7, 0.8, 0.8)
     assert_allclose(s.pbar, fa.LinearSystem(1.2, 0.7, 0.8, 0.8).pbar, rtol=1e-6)
@@ -187,9 +204,16 @@ def test_bad_input(paper, call, exc, name):
 # bounded by the documented limits, tested in test_bad_input).
 EDGE_INT = st.sampled_from([-(2**70), -(2**63), -1, 0, 1, 2, 3, 7, 2**31, 2**62, 2**63, 2**64, 2**70])
 ANY = st.one_of(
-    st.none(), st.booleans(), EDGE_INT, st.floats(allow_nan=True, allow_infinity=True),
-    st.fractions(), st.text(max_size=5), st.lists(st.floats(-3, 3), max_size=3),
-    st.just(np.array([[1.0, 2.0]])), st.just(np.float32(0.5)), st.just(Fraction(1, 7)),
+    st.none(),
+    st.booleans(),
+    EDGE_INT,
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.fractions(),
+    st.text(max_size=5),
+    st.lists(st.floats(-3, 3), max_size=3),
+    st.just(np.array([[1.0, 2.0]])),
+    st.just(np.float32(0.5)),
+    st.just(Fraction(1, 7)),
 )
 SMALL_INT = st.one_of(st.integers(-3, 12), ANY)
 PROB = st.one_of(st.floats(0, 1), ANY)
@@ -197,32 +221,50 @@ PROB = st.one_of(st.floats(0, 1), ANY)
 CALLS = {
     "j_online": lambda s, d: fa.j_online(s, d.draw(PROB), d.draw(SMALL_INT), d.draw(PROB)),
     "j_offline": lambda s, d: fa.j_offline(s, d.draw(PROB), d.draw(st.one_of(st.fractions(0, 1), ANY))),
-    "j_attack": lambda s, d: fa.j_attack(s, d.draw(PROB), d.draw(SMALL_INT), d.draw(SMALL_INT),
-                                         d.draw(SMALL_INT), d.draw(PROB)),
+    "j_attack": lambda s, d: fa.j_attack(
+        s, d.draw(PROB), d.draw(SMALL_INT), d.draw(SMALL_INT), d.draw(SMALL_INT), d.draw(PROB)
+    ),
     "j_max": lambda s, d: fa.j_max(s, d.draw(PROB)),
-    "stationary": lambda s, d: fa.stationary_distribution(d.draw(PROB), d.draw(SMALL_INT),
-                                                          d.draw(SMALL_INT), d.draw(SMALL_INT)),
-    "chain": lambda s, d: fa.attack_chain(d.draw(PROB), d.draw(SMALL_INT), d.draw(SMALL_INT),
-                                          d.draw(SMALL_INT)),
-    "pattern": lambda s, d: fa.j_attack_pattern(s, d.draw(PROB), d.draw(SMALL_INT),
-                                                d.draw(st.one_of(st.lists(st.integers(-1, 2), max_size=6), ANY)),
-                                                d.draw(PROB)),
+    "stationary": lambda s, d: fa.stationary_distribution(
+        d.draw(PROB), d.draw(SMALL_INT), d.draw(SMALL_INT), d.draw(SMALL_INT)
+    ),
+    "chain": lambda s, d: fa.attack_chain(
+        d.draw(PROB), d.draw(SMALL_INT), d.draw(SMALL_INT), d.draw(SMALL_INT)
+    ),
+    "pattern": lambda s, d: fa.j_attack_pattern(
+        s,
+        d.draw(PROB),
+        d.draw(SMALL_INT),
+        d.draw(st.one_of(st.lists(st.integers(-1, 2), max_size=6), ANY)),
+        d.draw(PROB),
+    ),
     "limit": lambda s, d: fa.j_attack_limit(s, d.draw(PROB), d.draw(SMALL_INT), d.draw(PROB)),
     "design": lambda s, d: fa.design_online(d.draw(PROB), d.draw(st.one_of(st.fractions(0, 1), ANY))),
     "energy": lambda s, d: fa.energy_ratio(d.draw(ANY), d.draw(ANY), d.draw(ANY)),
     "system": lambda s, d: fa.LinearSystem(d.draw(ANY), d.draw(ANY), d.draw(ANY), d.draw(ANY)),
-    "sweep": lambda s, d: fa.beta_sweep(s, d.draw(PROB), d.draw(st.one_of(st.fractions(0, 1), ANY)),
-                                        d.draw(st.one_of(st.integers(-2, 40), ANY))),
-    "curve": lambda s, d: fa.expected_trace_curve(s, d.draw(PROB), fa.OnlineSchedule(2),
-                                                  d.draw(st.one_of(st.integers(-2, 50), ANY)),
-                                                  d.draw(st.one_of(st.tuples(SMALL_INT, SMALL_INT), ANY))),
+    "sweep": lambda s, d: fa.beta_sweep(
+        s,
+        d.draw(PROB),
+        d.draw(st.one_of(st.fractions(0, 1), ANY)),
+        d.draw(st.one_of(st.integers(-2, 40), ANY)),
+    ),
+    "curve": lambda s, d: fa.expected_trace_curve(
+        s,
+        d.draw(PROB),
+        fa.OnlineSchedule(2),
+        d.draw(st.one_of(st.integers(-2, 50), ANY)),
+        d.draw(st.one_of(st.tuples(SMALL_INT, SMALL_INT), ANY)),
+    ),
     "traces": lambda s, d: s.weighted_traces(d.draw(ANY), d.draw(SMALL_INT)),
 }
 
 
 @pytest.mark.parametrize("name", sorted(CALLS))
-@settings(max_examples=150 * FUZZ, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@settings(
+    max_examples=150 * FUZZ,
+    deadline=None,
+    suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture],
+)
 @given(data=st.data())
 def test_fuzz_only_documented_errors(paper, name, data):
     try:
@@ -230,7 +272,7 @@ def test_fuzz_only_documented_errors(paper, name, data):
     except (ValueError, TypeError):
         return
     # A returned float is never NaN.
-    for v in (out if isinstance(out, tuple) else (out,)):
+    for v in out if isinstance(out, tuple) else (out,):
         if isinstance(v, float):
             assert not math.isnan(v)
         if isinstance(v, np.ndarray) and v.dtype.kind == "f":

@@ -13,7 +13,9 @@ import pytest
 
 import fakeack as fa
 
-HTML = Path(os.environ.get("FAKEACK_DOCS_HTML", Path(__file__).resolve().parents[2] / "docs" / "_build" / "html"))
+HTML = Path(
+    os.environ.get("FAKEACK_DOCS_HTML", Path(__file__).resolve().parents[2] / "docs" / "_build" / "html")
+)
 
 
 @pytest.fixture(scope="module")

@@ -69,12 +69,15 @@ def test_attack(paper, z0, mu, r, t):
     assert res.flags_blocked == pytest.approx(res.flags_sent * r / t, rel=0.01)
 
 
-@pytest.mark.parametrize(("beta", "gamma", "mask", "attack"), [
-    (0.2, 0.0, None, fa.RandomBlocking(0.2)),
-    (None, 0.05, None, fa.FlagInjection(0.05)),
-    (0.3, 0.1, None, fa.FlagInjection(0.1, fa.RandomBlocking(0.3))),
-    (None, 0.1, [1, 0, 0], fa.FlagInjection(0.1, fa.PeriodicBlocking(1, 3))),
-])
+@pytest.mark.parametrize(
+    ("beta", "gamma", "mask", "attack"),
+    [
+        (0.2, 0.0, None, fa.RandomBlocking(0.2)),
+        (None, 0.05, None, fa.FlagInjection(0.05)),
+        (0.3, 0.1, None, fa.FlagInjection(0.1, fa.RandomBlocking(0.3))),
+        (None, 0.1, [1, 0, 0], fa.FlagInjection(0.1, fa.PeriodicBlocking(1, 3))),
+    ],
+)
 def test_other_attacks(paper, beta, gamma, mask, attack):
     res = npp.simulate(
         **PAPER, lam=PAPER_LAM, z0=2, mask=mask, beta=beta, gamma=gamma, horizon=HORIZON, runs=RUNS, seed=8

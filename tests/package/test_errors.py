@@ -46,12 +46,15 @@ def test_malformed_csr_is_a_value_error():
         _fakeack.stationary_gth(bad, np.array([0], dtype=np.int64), np.array([1.0]))
 
 
-@pytest.mark.parametrize("kind, exc, text", [
-    ("invalid", ValueError, "arg: is wrong"),
-    ("too_large", ValueError, "arg: the request needs 2 elements, more than the limit of 1"),
-    ("not_converged", fa.ConvergenceError, "a solver did not converge after 3 iterations"),
-    ("interrupted", KeyboardInterrupt, "interrupted"),
-])
+@pytest.mark.parametrize(
+    "kind, exc, text",
+    [
+        ("invalid", ValueError, "arg: is wrong"),
+        ("too_large", ValueError, "arg: the request needs 2 elements, more than the limit of 1"),
+        ("not_converged", fa.ConvergenceError, "a solver did not converge after 3 iterations"),
+        ("interrupted", KeyboardInterrupt, "interrupted"),
+    ],
+)
 def test_every_core_error_maps_to_its_exception(kind, exc, text):
     with pytest.raises(exc, match=text):
         _fakeack.raise_core_error(kind)
@@ -126,14 +129,17 @@ def test_tolerance_limits():
     assert isinstance(err.value, ValueError) and "after 3 iterations" in str(err.value)
 
 
-@pytest.mark.parametrize("A, rho", [
-    (1.2, 1.2),
-    (-0.9, 0.9),
-    (np.array([[0.0, -1.1], [1.1, 0.0]]), 1.1),  # complex pair +-1.1i
-    (np.array([[0.5, 1.0], [0.0, 0.5]]), 0.5),  # Jordan block
-    (np.array([[0.0, 1.0], [0.0, 0.0]]), 0.0),  # nilpotent
-    (np.diag([0.3, -1.25, 1.2]), 1.25),
-])
+@pytest.mark.parametrize(
+    "A, rho",
+    [
+        (1.2, 1.2),
+        (-0.9, 0.9),
+        (np.array([[0.0, -1.1], [1.1, 0.0]]), 1.1),  # complex pair +-1.1i
+        (np.array([[0.5, 1.0], [0.0, 0.5]]), 0.5),  # Jordan block
+        (np.array([[0.0, 1.0], [0.0, 0.0]]), 0.0),  # nilpotent
+        (np.diag([0.3, -1.25, 1.2]), 1.25),
+    ],
+)
 def test_spectral_radius_closed_forms(A, rho):
     """Kills: the largest real part (or eigenvalue) instead of the largest modulus."""
     n = np.atleast_2d(A).shape[0]
@@ -174,12 +180,16 @@ def test_size_limits():
     assert fa.MAX_BUILD_STATES == 2 * 10**7 and fa.MAX_VECTOR_STATES == 10**8
     z0, r, t = _states_with_count(fa.MAX_BUILD_STATES + 1)
     assert fa.num_states(z0, r, t) == fa.MAX_BUILD_STATES + 1
-    with pytest.raises(ValueError, match=rf"{fa.MAX_BUILD_STATES + 1}.*{fa.MAX_BUILD_STATES}.*refused before allocating"):
+    with pytest.raises(
+        ValueError, match=rf"{fa.MAX_BUILD_STATES + 1}.*{fa.MAX_BUILD_STATES}.*refused before allocating"
+    ):
         fa.attack_chain(0.5, z0, r, t)
     with pytest.raises(ValueError, match="refused before allocating"):
         fa.stationary_distribution(0.5, z0, r, t, method="gth")  # GTH builds the chain
     z0, r, t = _states_with_count(fa.MAX_VECTOR_STATES + 1)
-    with pytest.raises(ValueError, match=rf"{fa.MAX_VECTOR_STATES + 1}.*{fa.MAX_VECTOR_STATES}.*refused before allocating"):
+    with pytest.raises(
+        ValueError, match=rf"{fa.MAX_VECTOR_STATES + 1}.*{fa.MAX_VECTOR_STATES}.*refused before allocating"
+    ):
         fa.stationary_distribution(0.5, z0, r, t)
     paper = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
     assert math.isfinite(fa.j_attack(paper, 0.5, z0, r, t))  # O(r z0): no vector needed
@@ -202,14 +212,17 @@ def test_system_matrices_are_read_only_and_from_statespace_passes_its_solver_opt
     assert loose.iterations < tight.iterations
 
 
-@pytest.mark.parametrize("T, message", [
-    (np.ones((2, 3)) / 3, "non-empty square"),
-    (np.zeros((0, 0)), "non-empty square"),
-    (np.ones((1, 1, 1)), None),
-    (np.array([[1.5, -0.5], [0.5, 0.5]]), "non-negative"),
-    (np.array([[np.nan, 1.0], [0.5, 0.5]]), "finite"),
-    (np.array([[0.5, 0.5 + 2e-10], [0.5, 0.5]]), "row-stochastic"),
-])
+@pytest.mark.parametrize(
+    "T, message",
+    [
+        (np.ones((2, 3)) / 3, "non-empty square"),
+        (np.zeros((0, 0)), "non-empty square"),
+        (np.ones((1, 1, 1)), None),
+        (np.array([[1.5, -0.5], [0.5, 0.5]]), "non-negative"),
+        (np.array([[np.nan, 1.0], [0.5, 0.5]]), "finite"),
+        (np.array([[0.5, 0.5 + 2e-10], [0.5, 0.5]]), "row-stochastic"),
+    ],
+)
 def test_stationary_gth_checks_its_matrix(T, message):
     """Each defect of T is refused with its reason (kills each clause of the checks turned into
     another, or dropped); zero entries and a single state are valid (kills `< 0` turned `<= 0`

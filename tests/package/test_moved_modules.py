@@ -9,7 +9,10 @@ import pytest
 
 @pytest.mark.parametrize(
     ("old", "new", "name"),
-    [("fakeack.study", "fakeack.studies.report", "analyse"), ("fakeack.grid_figures", "fakeack.plots.grid", "plot_beta_bar")],
+    [
+        ("fakeack.study", "fakeack.studies.report", "analyse"),
+        ("fakeack.grid_figures", "fakeack.plots.grid", "plot_beta_bar"),
+    ],
 )
 def test_old_module_path_warns_and_works(old, new, name):
     sys.modules.pop(old, None)

@@ -26,7 +26,10 @@ def _cargo_version() -> str:
 
 def test_version_comes_from_cargo_toml():
     assert fa.__version__ == _cargo_version()
-    assert "version" in (ROOT / "pyproject.toml").read_text(encoding="utf-8").split("dynamic = ")[1].split("\n")[0]
+    assert (
+        "version"
+        in (ROOT / "pyproject.toml").read_text(encoding="utf-8").split("dynamic = ")[1].split("\n")[0]
+    )
 
 
 def test_installed_metadata_reports_the_same_version():
@@ -119,7 +122,9 @@ def test_result_objects_render_as_html(paper):
 def test_study_result_renders_as_html(paper):
     from fakeack.studies.report import PAPER_ATTACKS, analyse
 
-    study = analyse(paper, 0.5, Fraction(1, 7), fa.OnlineDesign(2, 1.0), True, PAPER_ATTACKS, 20, None, horizon=50)
+    study = analyse(
+        paper, 0.5, Fraction(1, 7), fa.OnlineDesign(2, 1.0), True, PAPER_ATTACKS, 20, None, horizon=50
+    )
     html = study._repr_html_()
     assert html.count("<table") == 2 and "offline" in html
     assert repr(study).startswith("Analysis(") and "\n" not in repr(study)

@@ -247,13 +247,21 @@ def test_random_family_monte_carlo_simulates_independent_blocking(systems):
     c = ds.isel(system=0).sel(lam=0.5, ratio="1/7")
     for k, beta in enumerate([Fraction(1, 5), Fraction(2, 3)]):
         seed = cell_seed(5, str(ds.system.values[0]), 0.5, Fraction(1, 7), beta)
-        res = fa.simulate(s, 0.5, fa.OnlineSchedule(z0, mu), horizon=300, runs=4000, seed=seed,
-                          attack=fa.RandomBlocking(beta))
+        res = fa.simulate(
+            s,
+            0.5,
+            fa.OnlineSchedule(z0, mu),
+            horizon=300,
+            runs=4000,
+            seed=seed,
+            attack=fa.RandomBlocking(beta),
+        )
         assert same_bits(c["mc_j"][k], res.j) and same_bits(c["mc_stderr"][k], res.stderr)
         exact = fa.j_attack(s, 0.5, z0, mu=mu, attack=fa.RandomBlocking(beta))
         assert same_bits(c["mc_j_analytic"][k], exact)
-        horizon_mean = fa.expected_trace_curve(s, 0.5, fa.OnlineSchedule(z0, mu), 300,
-                                               fa.RandomBlocking(beta)).j_k[-1]
+        horizon_mean = fa.expected_trace_curve(
+            s, 0.5, fa.OnlineSchedule(z0, mu), 300, fa.RandomBlocking(beta)
+        ).j_k[-1]
         assert abs(res.j - horizon_mean) < 4 * res.stderr
     # the periodic attack 1/5 has another J: the two families are not confused
     assert abs(fa.j_attack(s, 0.5, z0, 1, 5, mu) - c["mc_j_analytic"][0]) > 0.005

@@ -50,4 +50,6 @@ def resolve_system(args: argparse.Namespace) -> SystemInputs:
     # Validate lam here so the message names the flag.
     if not 0 < lam < 1:
         raise ValueError(f"--lam must lie in (0, 1), got {lam}")
-    return SystemInputs(LinearSystem(matrices["A"], matrices["C"], matrices["Q"], matrices["R"]), lam, ratio, None)
+    return SystemInputs(
+        LinearSystem(matrices["A"], matrices["C"], matrices["Q"], matrices["R"]), lam, ratio, None
+    )

@@ -227,7 +227,9 @@ def _add_grid(sub: argparse._SubParsersAction) -> None:
         metavar="N",
         help="run on a dask LocalCluster of N worker processes",
     )
-    where.add_argument("--scheduler", metavar="ADDRESS", help="run on a running dask scheduler (tcp://host:8786)")
+    where.add_argument(
+        "--scheduler", metavar="ADDRESS", help="run on a running dask scheduler (tcp://host:8786)"
+    )
     parser.add_argument(
         "--resume", action="store_true", help="finish DIR/study.zarr, keeping the blocks already complete"
     )

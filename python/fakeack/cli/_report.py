@@ -219,7 +219,5 @@ def j_online_note(analysis: Analysis) -> str:
         " (Model note 2: here mu=1, so J_on = lam/(1-a^(z0+1)) sum_(i<=z0) a^i tr_i, a = 1-lam)."
         + mc
         + " Model note 7: the printed Sec. V numbers are finite Monte Carlo values and one of them is"
-        " misprinted."
-        + typo
-        + " Nothing here is tuned to the printed values."
+        " misprinted." + typo + " Nothing here is tuned to the printed values."
     )

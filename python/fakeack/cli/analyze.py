@@ -68,9 +68,7 @@ def _offline_text(cfg: Config) -> str:
     return f"period {cfg.ratio.denominator}"
 
 
-def _text(
-    cfg: Config, analysis: Analysis, other: list[str], out: str | None, figures: list[Path]
-) -> str:
+def _text(cfg: Config, analysis: Analysis, other: list[str], out: str | None, figures: list[Path]) -> str:
     lines = [
         f"fakeack analyze: {cfg.source}",
         f"  system {system_text(cfg.system)}; Tr Pbar = {float(np.trace(cfg.system.pbar)):.6f}",

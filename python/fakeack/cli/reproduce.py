@@ -50,14 +50,17 @@ PAPER_DELTA, PAPER_DELTA_LOW = 3.0, 1.0
 def _other_attacks(analysis: Analysis) -> tuple[list[str], dict]:
     bar = analysis.bar
     return reproduce_lines(
-        analysis.system, PAPER_LAM, PAPER_RATIO, PAPER_DELTA, PAPER_DELTA_LOW,
-        None if bar is None else bar.limit, None if bar is None else bar.finite,
+        analysis.system,
+        PAPER_LAM,
+        PAPER_RATIO,
+        PAPER_DELTA,
+        PAPER_DELTA_LOW,
+        None if bar is None else bar.limit,
+        None if bar is None else bar.finite,
     )
 
 
-def _text(
-    analysis: Analysis, other: list[str], figures: list[Path], out: Path, started: float
-) -> str:
+def _text(analysis: Analysis, other: list[str], figures: list[Path], out: Path, started: float) -> str:
     lines = [
         "fakeack reproduce: the paper's example (Sec. V)",
         f"  system {system_text(analysis.system)}; lam={PAPER_LAM}; energy ratio {PAPER_RATIO}",
@@ -98,9 +101,7 @@ def run(args: argparse.Namespace) -> int:
     figures: list[Path] = []
     if not args.no_figures:
         figures = write_figures(analysis, out, paper_beta_bar=PAPER_BETA_BAR, stationary=STATIONARY_EXAMPLE)
-        figures += family_figure(
-            analysis.system, PAPER_LAM, PAPER_RATIO, PAPER_DELTA, PAPER_DELTA_LOW, out
-        )
+        figures += family_figure(analysis.system, PAPER_LAM, PAPER_RATIO, PAPER_DELTA, PAPER_DELTA_LOW, out)
     other, other_json = _other_attacks(analysis)
     if args.json:
         document = {

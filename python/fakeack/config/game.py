@@ -38,17 +38,43 @@ __all__ = [
 
 
 GAME_SECTION = Section(
-    ("n_steps", "alphas", "fallbacks", "tests", "rules", "attacks", "max_detection", "t_max", "runs",
-     "horizon", "seed")
+    (
+        "n_steps",
+        "alphas",
+        "fallbacks",
+        "tests",
+        "rules",
+        "attacks",
+        "max_detection",
+        "t_max",
+        "runs",
+        "horizon",
+        "seed",
+    )
 )
 
 #: The attacker's choices of the default game: none, the paper's attack, a memoryless jammer, a
 #: forger, and rate matching (up to a budget of 0.8, where it costs more than the offline schedule).
 DEFAULT_ATTACKS = (
-    "none", "1/10", "1/5", "1/4", "1/3", "2/5", "2/3",
-    "random:0.1", "random:0.2", "random:0.3", "random:0.5",
-    "inject:0.02", "inject:0.05",
-    "match:0.1", "match:0.2", "match:0.3", "match:0.4", "match:0.5", "match:0.8",
+    "none",
+    "1/10",
+    "1/5",
+    "1/4",
+    "1/3",
+    "2/5",
+    "2/3",
+    "random:0.1",
+    "random:0.2",
+    "random:0.3",
+    "random:0.5",
+    "inject:0.02",
+    "inject:0.05",
+    "match:0.1",
+    "match:0.2",
+    "match:0.3",
+    "match:0.4",
+    "match:0.5",
+    "match:0.8",
 )
 
 
@@ -79,7 +105,7 @@ def _attack(text: str, lam: float, z0: int, mu: float, i: int) -> Any:
         return None
     if text.strip().startswith("match:"):
         try:
-            beta = float(text.strip()[len("match:"):])
+            beta = float(text.strip()[len("match:") :])
             return rate_matching_attack(lam, z0, beta, mu)
         except ValueError as exc:
             raise config_error("game", where, f"cannot read {text!r}: {exc}") from None

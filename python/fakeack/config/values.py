@@ -33,7 +33,6 @@ __all__ = [
 ]
 
 
-
 class ConfigError(ValueError):
     """A configuration problem; the message starts with ``config:`` and names the key."""
 
@@ -111,6 +110,7 @@ def read_choice(section: str, key: str, x: Any, allowed: tuple[str, ...]) -> str
 
 def read_matrix(section: str, key: str, x: Any) -> np.ndarray:
     """A number or a nested list of rows, as a finite 2-D float array."""
+
     def numeric(v: Any) -> bool:
         if isinstance(v, list):
             return all(numeric(u) for u in v)

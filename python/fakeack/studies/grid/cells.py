@@ -34,7 +34,6 @@ __all__ = [
 ]
 
 
-
 @dataclass(frozen=True)
 class MonteCarlo:
     """Settings of the Monte Carlo check of every cell (arguments of :func:`fakeack.simulate`)."""

@@ -27,7 +27,6 @@ __all__ = [
 ]
 
 
-
 @lru_cache(maxsize=4096)
 def _lam_parts(lam: float) -> tuple[int, int]:
     """(n, d) with lam = n/d as :func:`fakeack.design_online` reads a float lam (the simplest
