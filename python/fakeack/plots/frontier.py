@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -13,12 +13,18 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
+    from ..game.frontier import StealthyFrontier
+
 __all__ = [
     "plot_frontiers",
 ]
 
 
-def plot_frontiers(frontiers: Any, j_offline: Any = None, ax: Axes | Sequence[Axes] | None = None) -> Figure:
+def plot_frontiers(
+    frontiers: Sequence[StealthyFrontier],
+    j_offline: float | None = None,
+    ax: Axes | Sequence[Axes] | None = None,
+) -> Figure:
     """J against the detection probability per window along each stealthy frontier.
 
     One panel per test, one step line per attack family (its Pareto frontier: the largest J

@@ -156,7 +156,11 @@ def _exact_j_max_curve(s: LinearSystem, lam: float, horizon: int) -> np.ndarray:
 
 
 def run_monte_carlo(
-    s: LinearSystem, lam: float, sched: Any, mc: MonteCarloConfig, attack: Attack | None
+    s: LinearSystem,
+    lam: float,
+    sched: OfflineSchedule | OnlineDesign,
+    mc: MonteCarloConfig,
+    attack: Attack | None,
 ) -> SimulationResult:
     """:func:`fakeack.simulate` with the settings of ``mc``."""
     return simulate(
