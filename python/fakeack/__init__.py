@@ -71,7 +71,10 @@ from .game import (
     stealthy_frontier,
 )
 from .model import (
+    BernoulliChannel,
+    GilbertElliott,
     LinearSystem,
+    MarkovChannel,
     OfflineSchedule,
     OnlineDesign,
     OnlineSchedule,
@@ -159,6 +162,9 @@ __all__ = [
     "MAX_VECTOR_STATES",
     "ConvergenceError",
     "LinearSystem",
+    "BernoulliChannel",
+    "MarkovChannel",
+    "GilbertElliott",
     "OnlineDesign",
     "attack_chain",
     "balance_residual",
