@@ -27,6 +27,11 @@ def _schedule_and_attack(
         raise TypeError(
             f"sched must be a fakeack.OfflineSchedule or fakeack.OnlineSchedule, got {type(sched).__name__}"
         )
+    if isinstance(sched, OfflineSchedule) and sched.ratio is None:
+        raise ValueError(
+            "sched: an offline schedule given by its pattern is computed by fakeack.Scenario; "
+            "this route takes OfflineSchedule(ratio)"
+        )
     att = as_attack(attack)
     if isinstance(sched, OfflineSchedule) and att is not None:
         raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
