@@ -8,6 +8,7 @@ Schedule for Remote State Estimation", with the corrections listed in the README
 from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError
 from ._fakeack import __version__ as __version__  # written once, in Cargo.toml
 from .attacks import (
+    AttackerAutomaton,
     AttackPattern,
     BetaBar,
     BetaSweep,
@@ -15,6 +16,7 @@ from .attacks import (
     FlagInjection,
     MaskBlocking,
     MaskSearch,
+    MimicryAttack,
     PeriodicBlocking,
     RandomBlocking,
     RandomSweep,
@@ -98,6 +100,8 @@ from .plots import (
 from .studies import study_grid
 
 __all__ = [
+    "AttackerAutomaton",
+    "MimicryAttack",
     "FlagInjection",
     "FlagRates",
     "MaskBlocking",
