@@ -60,6 +60,7 @@ from .detection import (
     flag_rates,
     interval_test,
 )
+from .engine import Scenario
 from .game import (
     GameSimulation,
     GameSolution,
@@ -131,6 +132,7 @@ __all__ = [
     "flag_interval_law",
     "interval_test",
     "study_grid",
+    "Scenario",
     "GameSimulation",
     "GameSolution",
     "Payoff",

@@ -28,7 +28,7 @@ def test_classes_documented():
 DOCTEST_MODULES = [
     "attacks.automata", "attacks.chain", "attacks.kinds", "attacks.random", "attacks.rates", "detection.flags",
     "detection.interval_test", "detection.intervals", "detection.probability", "game.policies",
-    "model.channels", "model.schedules", "model.system",
+    "model.channels", "model.schedules", "model.system", "engine.scenario",
 ]
 
 
