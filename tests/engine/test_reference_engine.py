@@ -191,6 +191,18 @@ def test_mimicry_delivers_the_attack_free_flag_law(channel):
     assert J(mim) > J(free) * 1.01
 
 
+def test_mimicry_numbers_of_the_docs_page():
+    for channel, free, mimicry in [
+        (fa.GilbertElliott(0.1, 0.3, 0.9, 0.2), 1.334, 2.011),
+        (0.5, 1.690, 2.181),
+    ]:
+        ch = fa.model.as_channel(channel)
+        aut = as_automaton(fa.MimicryAttack(), channel=ch, design=fa.OnlineDesign(2))
+        assert round(J(online(ch, 2)), 3) == free
+        assert round(J(online(ch, 2, 1.0, automaton(aut))), 3) == mimicry
+    assert round(fa.j_offline(S, 0.5, "1/7"), 3) == 2.090
+
+
 @pytest.mark.parametrize("z0", [1, 2, 3])
 def test_min_gap_z0_plus_1_never_delivers_an_impossible_gap(z0):
     def closest_gap(chain, length):

@@ -124,7 +124,7 @@ class Scenario:
     Notes
     -----
     When the compiled module has no engine (an older build), the scenario is still validated, and
-    every method raises :class:`EngineUnavailableError`.
+    every method raises ``fakeack.engine.EngineUnavailableError``.
 
     Examples
     --------
