@@ -8,6 +8,7 @@ Schedule for Remote State Estimation", with the corrections listed in the README
 from ._fakeack import MAX_BUILD_STATES, MAX_VECTOR_STATES, ConvergenceError
 from ._fakeack import __version__ as __version__  # written once, in Cargo.toml
 from .attacks import (
+    AttackerAutomaton,
     AttackPattern,
     BetaBar,
     BetaSweep,
@@ -15,6 +16,7 @@ from .attacks import (
     FlagInjection,
     MaskBlocking,
     MaskSearch,
+    MimicryAttack,
     PeriodicBlocking,
     RandomBlocking,
     RandomSweep,
@@ -58,6 +60,7 @@ from .detection import (
     flag_rates,
     interval_test,
 )
+from .engine import Scenario
 from .game import (
     GameSimulation,
     GameSolution,
@@ -71,7 +74,10 @@ from .game import (
     stealthy_frontier,
 )
 from .model import (
+    BernoulliChannel,
+    GilbertElliott,
     LinearSystem,
+    MarkovChannel,
     OfflineSchedule,
     OnlineDesign,
     OnlineSchedule,
@@ -95,6 +101,8 @@ from .plots import (
 from .studies import study_grid
 
 __all__ = [
+    "AttackerAutomaton",
+    "MimicryAttack",
     "FlagInjection",
     "FlagRates",
     "MaskBlocking",
@@ -124,6 +132,7 @@ __all__ = [
     "flag_interval_law",
     "interval_test",
     "study_grid",
+    "Scenario",
     "GameSimulation",
     "GameSolution",
     "Payoff",
@@ -159,6 +168,9 @@ __all__ = [
     "MAX_VECTOR_STATES",
     "ConvergenceError",
     "LinearSystem",
+    "BernoulliChannel",
+    "MarkovChannel",
+    "GilbertElliott",
     "OnlineDesign",
     "attack_chain",
     "balance_residual",

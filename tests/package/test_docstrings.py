@@ -26,6 +26,7 @@ def test_classes_documented():
 
 
 DOCTEST_MODULES = [
+    "attacks.automata",
     "attacks.chain",
     "attacks.kinds",
     "attacks.random",
@@ -35,8 +36,10 @@ DOCTEST_MODULES = [
     "detection.intervals",
     "detection.probability",
     "game.policies",
+    "model.channels",
     "model.schedules",
     "model.system",
+    "engine.scenario",
 ]
 
 

@@ -1,6 +1,7 @@
 """Attacks on the flag-ACKs: the attack objects, the attack chain and its stationary law, the cost
 under attack, the attacker threshold and the sensor's decision, and the families beyond the paper's."""
 
+from .automata import AttackerAutomaton, MimicryAttack, as_automaton
 from .chain import (
     attack_chain,
     balance_residual,
@@ -35,6 +36,9 @@ from .threshold import (
 )
 
 __all__ = [
+    "AttackerAutomaton",
+    "MimicryAttack",
+    "as_automaton",
     "AttackPattern",
     "PeriodicBlocking",
     "MaskBlocking",

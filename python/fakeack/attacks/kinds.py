@@ -25,6 +25,7 @@ __all__ = [
     "FlagInjection",
     "Attack",
     "AttackLike",
+    "EngineOnlyAttack",
     "as_attack",
 ]
 
@@ -224,7 +225,8 @@ class RandomBlocking:
 
 @dataclass(frozen=True)
 class FlagInjection:
-    """Forge a flag-ACK with probability ``gamma`` on every step the detector sends none.
+    r"""Forge a flag-ACK with probability ``gamma`` on every step the detector sends none (and, with
+    ``min_gap``, only that long after the last flag-ACK the sensor received).
 
     The sensor then uses high power on the next step (Type B: a forged flag packet; Type A: the
     ACK bit flipped to 1; both have the same statistics). Forging lowers the estimation error but
@@ -237,22 +239,35 @@ class FlagInjection:
         Probability of a forged flag-ACK on a step without a genuine one, in [0, 1].
     block : RandomBlocking, PeriodicBlocking, MaskBlocking or None, optional
         The attack on the genuine flag-ACKs (default none).
+    min_gap : int, optional
+        Forge at step k only if :math:`k - k_{\mathrm{last}} \ge` ``min_gap``, with
+        :math:`k_{\mathrm{last}}` the last step whose flag-ACK reached the sensor (0 at the start).
+        The default 1 is no restriction; ``min_gap = z0 + 1`` never delivers two flag-ACKs closer
+        than the detector can send them. Only :class:`fakeack.Scenario` (the exact engine)
+        computes ``min_gap > 1``; the other routes refuse it.
 
     Examples
     --------
     >>> FlagInjection(0.1)
     FlagInjection(gamma=0.1, block=None)
+    >>> FlagInjection(0.1, min_gap=3)
+    FlagInjection(gamma=0.1, block=None, min_gap=3)
     >>> str(FlagInjection(0.1, RandomBlocking(0.3)))
     'forge a flag-ACK with probability 0.1, and block each flag-ACK with probability 0.3'
     """
 
     gamma: float
     block: PeriodicBlocking | MaskBlocking | RandomBlocking | None = None
+    min_gap: int = 1
 
     def __init__(
-        self, gamma: float | Fraction, block: PeriodicBlocking | MaskBlocking | RandomBlocking | None = None
+        self,
+        gamma: float | Fraction,
+        block: PeriodicBlocking | MaskBlocking | RandomBlocking | None = None,
+        min_gap: int = 1,
     ) -> None:
         object.__setattr__(self, "gamma", _probability("gamma", gamma))
+        object.__setattr__(self, "min_gap", as_int("min_gap", min_gap, minimum=1))
         if block is not None and not isinstance(block, (PeriodicBlocking, MaskBlocking, RandomBlocking)):
             raise TypeError(
                 "block must be None, fakeack.RandomBlocking, fakeack.PeriodicBlocking or "
@@ -267,13 +282,28 @@ class FlagInjection:
 
     @property
     def label(self) -> str:
-        """``"inject:gamma"``, with ``+`` and the blocking attack's label when there is one."""
+        """``"inject:gamma"``, with ``+`` and the blocking attack's label when there is one (and
+        `` min_gap=m`` when ``min_gap > 1``)."""
         head = f"inject:{self.gamma:g}"
-        return head if self.block is None else f"{head}+{self.block.label}"
+        head = head if self.block is None else f"{head}+{self.block.label}"
+        return head if self.min_gap == 1 else f"{head} min_gap={self.min_gap}"
+
+    def __repr__(self) -> str:
+        gap = "" if self.min_gap == 1 else f", min_gap={self.min_gap}"
+        return f"FlagInjection(gamma={self.gamma!r}, block={self.block!r}{gap})"
 
     def __str__(self) -> str:
         head = f"forge a flag-ACK with probability {self.gamma:g}"
+        if self.min_gap > 1:
+            head += f" at least {self.min_gap} steps after the last one received"
         return head if self.block is None else f"{head}, and {self.block}"
+
+
+class EngineOnlyAttack:
+    """Base of the attacks that only :class:`fakeack.Scenario` (the exact engine) computes:
+    :class:`fakeack.MimicryAttack` and :class:`fakeack.AttackerAutomaton`."""
+
+    __slots__ = ()
 
 
 #: Every attack type (for annotations).
@@ -360,6 +390,10 @@ def as_attack(value: AttackLike, name: str = "attack") -> Attack | None:
     """
     if value is None or isinstance(value, (PeriodicBlocking, MaskBlocking, RandomBlocking, FlagInjection)):
         return value
+    if isinstance(value, EngineOnlyAttack):
+        raise TypeError(
+            f"{name}: {type(value).__name__} is computed only by fakeack.Scenario (the exact engine)"
+        )
     if isinstance(value, tuple) and len(value) == 2:
         return PeriodicBlocking(*value)
     if isinstance(value, str):
@@ -381,15 +415,29 @@ def as_attack(value: AttackLike, name: str = "attack") -> Attack | None:
 
 
 @overload
-def core_attack(attack: Attack) -> _fakeack.Attack: ...
+def core_attack(attack: Attack, *, engine: bool = False) -> _fakeack.Attack: ...
 @overload
-def core_attack(attack: None) -> None: ...
+def core_attack(attack: None, *, engine: bool = False) -> None: ...
 @overload
-def core_attack(attack: Attack | None) -> _fakeack.Attack | None: ...
-def core_attack(attack: Attack | None) -> _fakeack.Attack | None:
-    """The compiled core's form of a validated attack object (``None`` stays ``None``)."""
+def core_attack(attack: Attack | None, *, engine: bool = False) -> _fakeack.Attack | None: ...
+def core_attack(attack: Attack | None, *, engine: bool = False) -> _fakeack.Attack | None:
+    """The compiled core's form of a validated attack object (``None`` stays ``None``).
+
+    A :class:`FlagInjection` with ``min_gap > 1`` is refused (ValueError naming ``attack``) unless
+    ``engine``: the exact engine takes ``min_gap`` as an argument of its own; today's routes
+    cannot compute it.
+    """
     if attack is None:
         return None
+    if isinstance(attack, FlagInjection) and attack.min_gap > 1 and not engine:
+        raise ValueError(
+            f"attack: FlagInjection with min_gap={attack.min_gap} is computed only by fakeack.Scenario "
+            "(the exact engine); this route takes min_gap=1"
+        )
+    if isinstance(attack, EngineOnlyAttack):
+        raise TypeError(
+            f"attack: {type(attack).__name__} is computed only by fakeack.Scenario (the exact engine)"
+        )
     if isinstance(attack, PeriodicBlocking):
         return _fakeack.Attack.periodic(attack.r, attack.t)
     if isinstance(attack, RandomBlocking):

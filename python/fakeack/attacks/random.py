@@ -12,8 +12,10 @@ from scipy.optimize import brentq
 
 from .. import _fakeack
 from .._internal.types import FloatArray, RatioLike
-from .._internal.validate import as_fraction, as_probability
-from ..model.schedules import check_online
+from .._internal.validate import as_fraction, as_int, as_probability
+from ..detection.flags import any_system
+from ..engine.scenario import Scenario
+from ..model.schedules import OnlineDesign, check_online
 from ..model.system import LinearSystem, compiled
 from .kinds import FlagInjection, RandomBlocking
 from .threshold import _problem
@@ -108,14 +110,17 @@ def random_blocking_sweep(
     return RandomSweep(b, j, g, design.z0, design.mu, lam)
 
 
-def rate_matching_attack(lam: float, z0: int, beta: float | Fraction, mu: float = 1.0) -> FlagInjection:
+def rate_matching_attack(
+    lam: float, z0: int, beta: float | Fraction, mu: float = 1.0, min_gap: int = 1
+) -> FlagInjection:
     r"""The injection that hides independent blocking from the flag count.
 
-    Returns ``FlagInjection(gamma, block=RandomBlocking(beta))`` whose long-run rate of flag-ACKs
-    reaching the sensor (genuine delivered plus forged) equals the attack-free rate, so a test of
-    the flag count alone (:func:`fakeack.detect_attack`) sees nothing on average. A root always
-    exists in [0, 1]: with :math:`\gamma = 0` at most the attack-free rate arrives, with
-    :math:`\gamma = 1` one flag per step. Found by Brent's method to full precision.
+    Returns ``FlagInjection(gamma, block=RandomBlocking(beta), min_gap=min_gap)`` whose long-run
+    rate of flag-ACKs reaching the sensor (genuine delivered plus forged) equals the attack-free
+    rate, so a test of the flag count alone (:func:`fakeack.detect_attack`) sees nothing on
+    average. With ``min_gap = 1`` a root always exists in [0, 1]: with :math:`\gamma = 0` at most
+    the attack-free rate arrives, with :math:`\gamma = 1` one flag per step. Found by Brent's
+    method to full precision.
 
     Parameters
     ----------
@@ -127,6 +132,16 @@ def rate_matching_attack(lam: float, z0: int, beta: float | Fraction, mu: float 
         The blocking probability to hide, in [0, 1].
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
+    min_gap : int, optional
+        The injection's ``min_gap`` (default 1: forge on any quiet step). With ``min_gap > 1`` the
+        rates come from the exact engine (:class:`fakeack.Scenario`); ``min_gap = z0 + 1`` also
+        hides the attack from every test of impossible gaps between flag-ACKs.
+
+    Raises
+    ------
+    ValueError
+        Naming ``min_gap`` when even forging at every allowed step delivers fewer flag-ACKs than
+        the attack-free rate.
 
     Examples
     --------
@@ -137,14 +152,24 @@ def rate_matching_attack(lam: float, z0: int, beta: float | Fraction, mu: float 
     lam, design = check_online(lam, z0, mu)
     z0, mu = design
     b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
+    gap = as_int("min_gap", min_gap, minimum=1)
     target = _fakeack.high_power_rate(lam, z0, mu)
     block = RandomBlocking(b)
 
     def excess(g: float) -> float:
+        if gap > 1:
+            design = OnlineDesign(z0, mu)
+            sc = Scenario(any_system(), lam, design, FlagInjection(g, block, gap))
+            return sc.flag_rates().delivered - target
         att = _fakeack.Attack.injection(g, _fakeack.Attack.random(b))
         return _fakeack.flag_rates(lam, z0, mu, att)[1] - target
 
     if excess(0.0) >= 0.0:  # beta = 0: nothing to hide
-        return FlagInjection(0.0, block)
+        return FlagInjection(0.0, block, gap)
+    if excess(1.0) < 0.0:
+        raise ValueError(
+            f"min_gap: with min_gap={gap}, forging at every allowed step still delivers fewer "
+            "flag-ACKs than the attack-free rate"
+        )
     gamma = brentq(excess, 0.0, 1.0, xtol=1e-15, rtol=4 * np.finfo(float).eps)
-    return FlagInjection(gamma, block)
+    return FlagInjection(gamma, block, gap)

@@ -95,6 +95,11 @@ class FlagRates(NamedTuple):
     forged: float
     """Forged flag-ACKs (part of ``delivered``)."""
 
+    @property
+    def blocked(self) -> float:
+        """Genuine flag-ACKs that did not reach the sensor: ``sent - (delivered - forged)``."""
+        return self.sent - (self.delivered - self.forged)
+
 
 def flag_rates(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) -> FlagRates:
     r"""Long-run flag-ACKs per step: sent by the detector, reaching the sensor, forged (exact).

@@ -63,6 +63,11 @@ def _blocking(attack: Attack | None) -> tuple[list[float], float]:
         return [0.0], 0.0
     gamma = 0.0
     if isinstance(attack, FlagInjection):
+        if attack.min_gap > 1:
+            raise ValueError(
+                f"attack: FlagInjection with min_gap={attack.min_gap} is computed only by fakeack.Scenario "
+                "(the exact engine); the gap laws take min_gap=1"
+            )
         gamma, attack = attack.gamma, attack.block
         if attack is None:
             return [0.0], gamma

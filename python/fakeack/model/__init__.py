@@ -1,6 +1,7 @@
 """The model: the process and its Kalman filter, and the power schedules without attack (offline and
 ACK-based online) with their costs and the online design."""
 
+from .channels import BernoulliChannel, Channel, GilbertElliott, MarkovChannel, as_channel
 from .schedules import (
     OfflineSchedule,
     OnlineDesign,
@@ -16,6 +17,11 @@ from .system import LinearSystem
 
 __all__ = [
     "LinearSystem",
+    "Channel",
+    "BernoulliChannel",
+    "MarkovChannel",
+    "GilbertElliott",
+    "as_channel",
     "energy_ratio",
     "offline_schedule",
     "j_offline",

@@ -3,9 +3,12 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
-from typing import NamedTuple
+from typing import Any, NamedTuple
+
+import numpy as np
 
 from .. import _fakeack
 from .._internal.types import IntArray, RatioLike
@@ -337,9 +340,22 @@ def j_max(system: LinearSystem, lam: float) -> float:
     return core.j_max(lam)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False, repr=False)
 class OfflineSchedule:
-    """The optimal offline schedule for an energy ratio (Theorem 3.1).
+    r"""An offline schedule: the optimal one for an energy ratio (Theorem 3.1), or any periodic
+    pattern of power levels.
+
+    Give exactly one of ``ratio`` and ``pattern``. A pattern is one period, first symbol = step 1
+    (``"1000000"`` uses high power at steps 1, 8, 15, ...); an all-zero pattern is the sensor that
+    always transmits at low power. The sensor follows it whatever the flag-ACKs say.
+
+    Parameters
+    ----------
+    ratio : Fraction, int/int string or float, optional
+        Energy ratio :math:`p/q \in (0, 1)`: the period is :func:`offline_schedule` ``(ratio)``.
+    pattern : str or sequence of 0/1, keyword-only, optional
+        One period of power levels (1 = high power :math:`\Delta`), a string of ``0``/``1`` or a
+        sequence of 0/1 or booleans.
 
     Examples
     --------
@@ -347,19 +363,81 @@ class OfflineSchedule:
     OfflineSchedule(ratio=Fraction(1, 7))
     >>> str(OfflineSchedule("1/7"))
     'offline 1/7: 1000000'
+    >>> OfflineSchedule(pattern="0110")
+    OfflineSchedule(pattern='0110')
+    >>> OfflineSchedule(pattern=[1, 0, 0]).pattern.tolist(), OfflineSchedule(pattern="10").ratio
+    ([1, 0, 0], None)
     """
 
-    ratio: Fraction
+    ratio: Fraction | None
+    """The energy ratio, or ``None`` for a schedule given by its pattern."""
+    _given: tuple[int, ...] | None
 
-    def __init__(self, ratio: RatioLike) -> None:
-        object.__setattr__(self, "ratio", as_ratio("ratio", ratio))
+    def __init__(self, ratio: RatioLike | None = None, *, pattern: str | Sequence[int] | None = None) -> None:
+        if (ratio is None) == (pattern is None):
+            raise TypeError("give exactly one of ratio and pattern")
+        if ratio is not None:
+            object.__setattr__(self, "ratio", as_ratio("ratio", ratio))
+            object.__setattr__(self, "_given", None)
+        else:
+            object.__setattr__(self, "ratio", None)
+            object.__setattr__(self, "_given", _as_pattern(pattern))
 
     @property
     def pattern(self) -> IntArray:
-        """One period, 1 = high power."""
+        """One period as an ``int64`` array of 0/1, 1 = high power, first entry = step 1."""
+        if self._given is not None:
+            return np.array(self._given, dtype=np.int64)
+        assert self.ratio is not None
         return offline_schedule(self.ratio)
+
+    @property
+    def high_fraction(self) -> Fraction:
+        """The fraction of steps at high power: the ratio, or the pattern's share of ones."""
+        if self._given is not None:
+            return Fraction(sum(self._given), len(self._given))
+        assert self.ratio is not None
+        return self.ratio
+
+    def __repr__(self) -> str:
+        if self._given is None:
+            return f"OfflineSchedule(ratio={self.ratio!r})"
+        if len(self._given) <= MAX_PATTERN_REPR:
+            return f"OfflineSchedule(pattern={''.join(map(str, self._given))!r})"
+        return f"OfflineSchedule(pattern=<{sum(self._given)} high of {len(self._given)} steps>)"
 
     def __str__(self) -> str:
         pat = self.pattern
         body = "".join(map(str, pat.tolist())) if len(pat) <= 40 else f"{len(pat)} steps"
+        if self.ratio is None:
+            return f"offline pattern: {body}"
         return f"offline {self.ratio}: {body}"
+
+
+#: Longest pattern a repr writes out.
+MAX_PATTERN_REPR = 64
+#: Longest offline pattern accepted (symbols per period).
+MAX_PATTERN = 10_000_000
+
+
+def _as_pattern(pattern: Any) -> tuple[int, ...]:
+    """A non-empty 0/1 pattern from a string of 0/1 or a sequence of 0/1 or booleans."""
+    if isinstance(pattern, str):
+        if not pattern or set(pattern) - {"0", "1"}:
+            raise ValueError(f"pattern must be a non-empty string of 0 and 1, got {pattern!r}")
+        return tuple(int(c) for c in pattern)
+    if isinstance(pattern, bytes):
+        raise TypeError("pattern must be a string or a sequence of 0/1, got bytes")
+    try:
+        arr = np.asarray(pattern)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"pattern: cannot be read as a sequence of 0/1 ({exc})") from None
+    if arr.ndim != 1 or arr.size == 0:
+        raise ValueError(f"pattern must be a non-empty 1-D sequence of 0/1, got shape {arr.shape}")
+    if arr.size > MAX_PATTERN:
+        raise ValueError(f"pattern: longer than {MAX_PATTERN} steps")
+    if arr.dtype.kind not in "biuf":
+        raise TypeError(f"pattern must hold 0/1 or booleans, got dtype {arr.dtype}")
+    if not np.all(np.isin(arr, (0, 1))):
+        raise ValueError("pattern must hold only 0 and 1")
+    return tuple(int(x) for x in arr)

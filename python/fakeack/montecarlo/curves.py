@@ -27,6 +27,11 @@ def _schedule_and_attack(
         raise TypeError(
             f"sched must be a fakeack.OfflineSchedule or fakeack.OnlineSchedule, got {type(sched).__name__}"
         )
+    if isinstance(sched, OfflineSchedule) and sched.ratio is None:
+        raise ValueError(
+            "sched: an offline schedule given by its pattern is computed by fakeack.Scenario; "
+            "this route takes OfflineSchedule(ratio)"
+        )
     att = as_attack(attack)
     if isinstance(sched, OfflineSchedule) and att is not None:
         raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
@@ -97,6 +102,7 @@ def expected_trace_curve(
     horizon = as_int("horizon", horizon, minimum=1)
     if isinstance(sched, OfflineSchedule):
         r = sched.ratio
+        assert r is not None  # _schedule_and_attack refuses a schedule given by its pattern
         trace = core.curve_offline(lam, r.numerator, r.denominator, horizon)
     else:
         if isinstance(att, MaskBlocking) and all(att.mask):

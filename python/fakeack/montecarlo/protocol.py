@@ -168,6 +168,7 @@ def simulate(
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol must be 'A' or 'B', got {protocol!r}")
     if isinstance(sched, OfflineSchedule):
+        assert sched.ratio is not None  # _schedule_and_attack refuses a schedule given by its pattern
         kind, p, q, z0, mu = "offline", sched.ratio.numerator, sched.ratio.denominator, 1, 1.0
     else:
         kind, p, q, z0, mu = "online", 1, 2, sched.z0, sched.mu

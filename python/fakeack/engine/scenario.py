@@ -1,0 +1,332 @@
+r"""One scenario of the exact engine: a system, a channel, a sensor schedule and an attacker.
+
+The engine builds the finite automaton E of everything but the holding time :math:`\tau` (the
+channel state, the detector's zero count, the sensor's next power level or offline phase, the
+attacker's state), splits its transition matrix :math:`K = K_0 + K_1` by loss and arrival, and
+solves the coupled Stein equations
+
+.. math:: Z_e = \bar P + (w_e - 1) Q + \sum_f K_0[e, f]\, A Z_f A', \qquad
+   J = \mathrm{Tr} \sum_e \nu_e Z_e,
+
+with :math:`\nu = \pi_E K_1` and :math:`w = (I - K_0)^{-1}\mathbf 1` (docs page "The exact
+engine"). The computation is the compiled core's (``fakeack._fakeack.Engine``); this module
+validates the objects and converts them.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple, cast
+
+import numpy as np
+import numpy.typing as npt
+import scipy.sparse as sp
+
+from .. import _fakeack
+from .._internal.html import key_values
+from .._internal.validate import as_int, as_real
+from ..attacks.automata import AttackerAutomaton, MimicryAttack, Transition
+from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack, core_attack
+from ..detection.flags import FlagRates
+from ..model.channels import Channel, as_channel
+from ..model.schedules import OfflineSchedule, OnlineDesign
+from ..model.system import LinearSystem, compiled
+from ..montecarlo.curves import TraceCurve
+
+__all__ = [
+    "Scenario",
+    "EngineAutomaton",
+    "EngineUnavailableError",
+    "DEFAULT_MAX_STATES",
+    "engine_available",
+]
+
+#: Largest automaton (states of E) a scenario builds unless told otherwise.
+DEFAULT_MAX_STATES = 1_000_000
+#: Longest offline period passed to the engine.
+MAX_OFFLINE_PERIOD = 10_000_000
+
+ScenarioAttack = Attack | MimicryAttack | AttackerAutomaton
+
+
+class EngineUnavailableError(RuntimeError):
+    """The compiled module of this installation has no exact engine (``fakeack._fakeack.Engine``)."""
+
+
+def _engine_class() -> Any:
+    return getattr(_fakeack, "Engine")  # noqa: B009  (absent from older builds and from the stub)
+
+
+def engine_available() -> bool:
+    """Whether the compiled core provides the exact engine."""
+    return hasattr(_fakeack, "Engine")
+
+
+class EngineAutomaton(NamedTuple):
+    """The automaton E of a scenario: a label per state and the loss / arrival parts of K."""
+
+    labels: list[str]
+    """One readable label per state of E."""
+    K0: sp.csr_array
+    """Transitions on which the packet is lost (tau -> tau + 1)."""
+    K1: sp.csr_array
+    """Transitions on which the packet arrives (tau -> 0)."""
+
+
+def _schedule(schedule: object) -> OnlineDesign | OfflineSchedule:
+    if isinstance(schedule, (OnlineDesign, OfflineSchedule)):
+        return schedule
+    raise TypeError(
+        f"schedule must be a fakeack.OnlineDesign or fakeack.OfflineSchedule, got {type(schedule).__name__}"
+    )
+
+
+def _attack(attack: object) -> ScenarioAttack | None:
+    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
+        return attack
+    return as_attack(cast("AttackLike", attack))  # as_attack validates any object
+
+
+def _transitions(events: tuple[tuple[Transition, ...], ...]) -> list[list[Transition]]:
+    return [list(ev) for ev in events]
+
+
+class Scenario:
+    r"""A system, a channel, a sensor schedule and an attacker, computed exactly.
+
+    Parameters
+    ----------
+    system : LinearSystem
+        The process and its sensor (:math:`A, C, Q, R`; the engine uses :math:`A`, :math:`Q` and
+        :math:`\bar P`).
+    channel : Channel or float
+        :class:`fakeack.BernoulliChannel`, :class:`fakeack.MarkovChannel`,
+        :class:`fakeack.GilbertElliott`, or a float ``lam`` (the paper's channel).
+    schedule : OnlineDesign or OfflineSchedule
+        The ACK-based online schedule ``(z0, mu)``, or an offline one (by its ratio or any
+        pattern). An offline sensor ignores flag-ACKs, so an attack does not change its cost.
+    attack : attack, MimicryAttack, AttackerAutomaton or None, optional
+        Any built-in attack (or a spelling ``as_attack`` reads, e.g. ``"1/5"``), including
+        :class:`fakeack.FlagInjection` with ``min_gap``; :class:`fakeack.MimicryAttack`, whose
+        ``None`` channel and design are this scenario's (an offline scenario has no design, so
+        mimicry then needs ``design=``); or any :class:`fakeack.AttackerAutomaton`.
+    max_states : int, keyword-only, optional
+        Refuse (ValueError) an automaton E of more states than this, before allocating it
+        (default 10^6).
+
+    Raises
+    ------
+    TypeError, ValueError
+        For invalid arguments (naming them). Once the engine is built, ValueError naming the
+        channel or the attack when from some state no arrival can ever happen
+        (:math:`\rho(K_0) = 1`).
+
+    Notes
+    -----
+    When the compiled module has no engine (an older build), the scenario is still validated, and
+    every method raises ``fakeack.engine.EngineUnavailableError``.
+
+    Examples
+    --------
+    >>> import fakeack as fa
+    >>> sc = fa.Scenario(fa.LinearSystem(1.2, 0.7, 0.8, 0.8), fa.GilbertElliott(0.1, 0.3, 0.9, 0.2),
+    ...                  fa.OnlineDesign(2), fa.PeriodicBlocking(1, 5))
+    >>> sc  # doctest: +ELLIPSIS
+    Scenario(system=LinearSystem(...), channel=GilbertElliott(...), schedule=OnlineDesign(...), attack=...)
+    """
+
+    def __init__(
+        self,
+        system: LinearSystem,
+        channel: Channel | float,
+        schedule: OnlineDesign | OfflineSchedule,
+        attack: object = None,
+        *,
+        max_states: int = DEFAULT_MAX_STATES,
+    ) -> None:
+        self._core_system = compiled(system)
+        self.system = system
+        self.channel: Channel = as_channel(channel, "channel")
+        self.schedule: OnlineDesign | OfflineSchedule = _schedule(schedule)
+        self.attack: ScenarioAttack | None = _attack(attack)
+        self.max_states = as_int("max_states", max_states, minimum=1)
+        self._args = self._binding_args()
+        self._engine: Any = _engine_class()(*self._args) if engine_available() else None
+
+    # --- conversion ----------------------------------------------------------------------------
+
+    def _binding_args(self) -> tuple[Any, ...]:
+        ch = self.channel
+        P, low, high = ch.P.tolist(), ch.low.tolist(), ch.high.tolist()
+        offline: list[bool] | None = None
+        if isinstance(self.schedule, OfflineSchedule):
+            r = self.schedule.ratio
+            if r is not None and r.denominator > MAX_OFFLINE_PERIOD:
+                raise ValueError(
+                    f"schedule: an offline period of {r.denominator} steps exceeds {MAX_OFFLINE_PERIOD}"
+                )
+            offline = [bool(x) for x in self.schedule.pattern]
+            z0, mu = 1, 1.0
+        else:
+            z0, mu = self.schedule.z0, self.schedule.mu
+        att, min_gap, mimicry, automaton = None, 1, None, None
+        a = self.attack
+        if isinstance(a, MimicryAttack):
+            vch = a.channel if a.channel is not None else ch
+            design = a.design if a.design is not None else self._design()
+            mimicry = (vch.P.tolist(), vch.low.tolist(), vch.high.tolist(), design.z0, design.mu)
+        elif isinstance(a, AttackerAutomaton):
+            automaton = (_transitions(a.flag), _transitions(a.quiet), a.start)
+        elif a is not None:
+            att = core_attack(a, engine=True)
+            if isinstance(a, FlagInjection):
+                min_gap = a.min_gap
+        return (P, low, high, z0, mu, offline, att, min_gap, mimicry, automaton, self.max_states)
+
+    def _design(self) -> OnlineDesign:
+        if isinstance(self.schedule, OnlineDesign):
+            return self.schedule
+        raise ValueError(
+            "attack: a MimicryAttack in an offline scenario needs its own design= (the virtual "
+            "detector); the offline sensor has none"
+        )
+
+    def _get(self) -> Any:
+        if self._engine is None:
+            if not engine_available():
+                raise EngineUnavailableError(
+                    "this build of fakeack._fakeack has no exact engine (Engine); rebuild the extension "
+                    "(maturin develop) from a source tree that has it"
+                )
+            self._engine = _engine_class()(*self._args)
+        return self._engine
+
+    # --- results -------------------------------------------------------------------------------
+
+    @property
+    def n_states(self) -> int:
+        """The number of states of the automaton E."""
+        return int(self._get().n_states)
+
+    def cost(self) -> float:
+        r"""The long-run average cost :math:`J = \lim \frac1T\sum_{k\le T}\mathrm{Tr}\,\mathbb E P_k`.
+
+        Returns
+        -------
+        float
+            :math:`\mathrm{Tr}\sum_e \nu_e Z_e` from the coupled Stein equations; ``inf`` when
+            :math:`\rho(K_0)\rho(A)^2 \ge 1` (never NaN).
+        """
+        return float(self._get().cost(self._core_system))
+
+    def stability_index(self) -> float:
+        r""":math:`\rho(K_0)\,\rho(A)^2`: the cost is finite iff it is below 1.
+
+        Decided by an M-matrix test (the solution of :math:`(I - \rho(A)^2 K_0)x = \mathbf 1`
+        exists and is positive), which is exact also for the cyclic :math:`K_0` of periodic
+        attacks. With every flag-ACK blocked on the paper's channel it is
+        :math:`(1-\lambda)\rho(A)^2` (Model note 5).
+        """
+        return float(self._get().stability_index(self._core_system))
+
+    def high_power_rate(self) -> float:
+        """The long-run fraction of steps at high power (online: the rate of flag-ACKs received)."""
+        return float(self._get().high_power_rate())
+
+    def energy_per_step(self, Delta: float, delta: float) -> float:
+        r"""Long-run energy per step, :math:`\delta + (\Delta - \delta) f` with f :meth:`high_power_rate`.
+
+        Parameters
+        ----------
+        Delta, delta : float
+            Energy of a high- and a low-power transmission, :math:`\Delta > \delta \ge 0`.
+        """
+        hi, lo = as_real("Delta", Delta), as_real("delta", delta)
+        if lo < 0:
+            raise ValueError(f"delta must be non-negative, got {lo}")
+        if not hi > lo:
+            raise ValueError(f"Delta must exceed delta, got Delta={hi}, delta={lo}")
+        return lo + (hi - lo) * self.high_power_rate()
+
+    def flag_rates(self) -> FlagRates:
+        """Long-run flag-ACKs per step: sent by the detector, reaching the sensor, forged.
+
+        Returns
+        -------
+        FlagRates
+            ``(sent, delivered, forged)``; ``.blocked`` is ``sent - (delivered - forged)``, the
+            genuine flag-ACKs that did not reach the sensor.
+        """
+        sent, delivered, forged = self._get().flag_rates()
+        return FlagRates(float(sent), float(delivered), float(forged))
+
+    def holding_time_law(self, n: int) -> npt.NDArray[np.float64]:
+        r"""The stationary law of the holding time: :math:`P(\tau = 0..n-1)` and :math:`P(\tau \ge n)`.
+
+        Parameters
+        ----------
+        n : int
+            The number of point masses, at least 1.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``(n + 1,)``, summing to 1.
+        """
+        n = as_int("n", n, minimum=1)
+        return np.asarray(self._get().holding_time_law(n), dtype=np.float64)
+
+    def cost_curve(self, horizon: int = 200) -> TraceCurve:
+        r""":math:`\mathbb E\,\mathrm{Tr}\,P_k` and :math:`J_k` for k = 1..horizon, exactly.
+
+        From the paper's initial condition (high power at k = 1, memory all ones, the attacker in
+        its start state, :math:`c_1` stationary); :math:`J_k` tends to :meth:`cost`.
+
+        Parameters
+        ----------
+        horizon : int, optional
+            Number of steps (default 200).
+        """
+        horizon = as_int("horizon", horizon, minimum=1)
+        trace, j_k = self._get().cost_curve(self._core_system, horizon)
+        return TraceCurve(np.arange(1, horizon + 1), np.asarray(trace), np.asarray(j_k))
+
+    def automaton(self) -> EngineAutomaton:
+        """The automaton E: its state labels and :math:`K_0`, :math:`K_1` as ``scipy.sparse.csr_array``.
+
+        ``K0 + K1`` is row-stochastic; ``K0[e, f]`` is the probability of moving from e to f
+        with a lost packet, ``K1[e, f]`` with an arrival.
+        """
+        labels, k0, k1 = self._get().automaton()
+        n = len(labels)
+
+        def csr(coo: tuple[Any, Any, Any]) -> sp.csr_array:
+            rows, cols, vals = (np.asarray(x) for x in coo)
+            return sp.csr_array((vals.astype(np.float64), (rows, cols)), shape=(n, n))
+
+        return EngineAutomaton(list(labels), csr(k0), csr(k1))
+
+    # --- display -------------------------------------------------------------------------------
+
+    def __repr__(self) -> str:
+        att = "" if self.attack is None else f", attack={self.attack!r}"
+        return f"Scenario(system={self.system!r}, channel={self.channel!r}, schedule={self.schedule!r}{att})"
+
+    def _repr_html_(self) -> str:
+        items: list[tuple[str, Any]] = [
+            ("channel", repr(self.channel)),
+            ("schedule", str(self.schedule)),
+            ("attack", "none" if self.attack is None else str(self.attack)),
+        ]
+        if engine_available():
+            j = self.cost()
+            items += [
+                ("states of E", self.n_states),
+                ("J", j),
+                ("stability index", self.stability_index()),
+                ("high-power rate", self.high_power_rate()),
+            ]
+            note = "" if math.isfinite(j) else "J is infinite: rho(K0) rho(A)^2 >= 1."
+        else:
+            note = "This build of the compiled core has no exact engine."
+        return key_values("Scenario", items, note)
