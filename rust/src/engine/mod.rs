@@ -51,7 +51,8 @@ use crate::error::{Error, Result};
 use crate::renewal::rates::FlagRates;
 use crate::schedule::{offline_schedule, OnlineDesign, Ratio};
 use crate::system::LinearSystem;
-use solve::Stationary;
+use solve::{Stationary, Stop};
+use std::sync::atomic::AtomicBool;
 
 /// Default limit on the product's states.
 pub const DEFAULT_MAX_STATES: usize = 10_000_000;
@@ -234,21 +235,50 @@ impl Engine {
 
     /// The long-run cost J = lim E Tr P_k; +inf when ρ(K0) ρ(A)² >= 1, never NaN.
     pub fn cost(&self, system: &LinearSystem) -> Result<f64> {
-        solve::cost(self.stationary()?, &self.product.k0, system)
+        self.cost_cancellable(system, None)
+    }
+
+    /// [`Engine::cost`], stopping with [`Error::Interrupted`] between solves once `cancel` is set.
+    pub fn cost_cancellable(
+        &self,
+        system: &LinearSystem,
+        cancel: Option<&AtomicBool>,
+    ) -> Result<f64> {
+        solve::cost(self.stationary()?, &self.product.k0, system, Stop(cancel))
     }
 
     /// ρ(K0), to ~1e-13 relative (0 when the holding time is bounded).
     pub fn rho_k0(&self) -> Result<f64> {
+        self.rho_k0_cancellable(None)
+    }
+
+    /// [`Engine::rho_k0`], stopping between M-matrix tests once `cancel` is set (an interrupted
+    /// bisection is not cached).
+    pub fn rho_k0_cancellable(&self, cancel: Option<&AtomicBool>) -> Result<f64> {
+        if let Some(r) = self.rho_k0.get() {
+            return r.clone();
+        }
         let st = self.stationary()?;
-        self.rho_k0
-            .get_or_init(|| st.rho_k0(&self.product.k0))
-            .clone()
+        let r = st.rho_k0(&self.product.k0, Stop(cancel));
+        if r != Err(Error::Interrupted) {
+            let _ = self.rho_k0.set(r.clone());
+        }
+        r
     }
 
     /// The stability index ρ(K0) ρ(A)²: J is finite iff it is below 1.
     pub fn stability_index(&self, system: &LinearSystem) -> Result<f64> {
+        self.stability_index_cancellable(system, None)
+    }
+
+    /// [`Engine::stability_index`] with a cancellation flag.
+    pub fn stability_index_cancellable(
+        &self,
+        system: &LinearSystem,
+        cancel: Option<&AtomicBool>,
+    ) -> Result<f64> {
         let r = system.spectral_radius();
-        Ok(self.rho_k0()? * r * r)
+        Ok(self.rho_k0_cancellable(cancel)? * r * r)
     }
 
     /// Long-run fraction of steps at high power.
@@ -301,6 +331,17 @@ impl Engine {
         system: &LinearSystem,
         horizon: usize,
     ) -> Result<(Vec<f64>, Vec<f64>)> {
+        self.cost_curve_cancellable(system, horizon, None)
+    }
+
+    /// [`Engine::cost_curve`], stopping between steps once `cancel` is set.
+    pub fn cost_curve_cancellable(
+        &self,
+        system: &LinearSystem,
+        horizon: usize,
+        cancel: Option<&AtomicBool>,
+    ) -> Result<(Vec<f64>, Vec<f64>)> {
+        let stop = Stop(cancel);
         if horizon == 0 {
             return Err(Error::invalid("horizon", "must be at least 1"));
         }
@@ -328,6 +369,7 @@ impl Engine {
         let mut tmp = vec![0.0; nn];
         let mut trace = Vec::with_capacity(horizon);
         for _ in 0..horizon {
+            stop.check()?;
             p.k1.left_mul(&law, &mut arrive);
             next_s.iter_mut().for_each(|x| *x = 0.0);
             for f in 0..n {

@@ -11,6 +11,20 @@ use crate::engine::product::{Product, SparseRows};
 use crate::error::{Error, Result};
 use crate::system::LinearSystem;
 
+/// A cancellation flag polled between the solves of a long computation (never set when None).
+#[derive(Clone, Copy, Default)]
+pub(crate) struct Stop<'a>(pub Option<&'a std::sync::atomic::AtomicBool>);
+
+impl Stop<'_> {
+    /// [`Error::Interrupted`] once the flag is set.
+    pub(crate) fn check(&self) -> Result<()> {
+        match self.0 {
+            Some(f) if f.load(std::sync::atomic::Ordering::Relaxed) => Err(Error::Interrupted),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// The K0 pattern of (I - s K0)^T in CSC form (column e holds row e of K0 and the diagonal),
 /// with the index of each entry's K0 value.
 pub(crate) struct ShiftedK0 {
@@ -320,11 +334,12 @@ impl Stationary {
     /// (ρ(K0) < r iff (I - K0/r) x = 1 has a positive solution), to ~1e-13 relative. Each test
     /// with a positive x also bounds ρ(K0) <= r (1 - 1/max x) (Collatz-Wielandt), which tightens
     /// the bracket.
-    pub(crate) fn rho_k0(&self, k0: &SparseRows) -> Result<f64> {
+    pub(crate) fn rho_k0(&self, k0: &SparseRows, stop: Stop<'_>) -> Result<f64> {
         if is_acyclic(k0) {
             return Ok(0.0);
         }
         let test = |r: f64| -> Result<Option<f64>> {
+            stop.check()?;
             Ok(self
                 .shifted
                 .m_matrix(1.0 / r)?
@@ -378,7 +393,12 @@ fn is_acyclic(k0: &SparseRows) -> bool {
 
 /// J = Tr sum_e nu_e Z_e with Z_e = b_e + sum_f K0[e, f] A Z_f A', b_e = P̄ + (w_e - 1) Q;
 /// +inf when ρ(K0) ρ(A)² >= 1 (the M-matrix test at s = ρ(A)²).
-pub(crate) fn cost(st: &Stationary, k0: &SparseRows, sys: &LinearSystem) -> Result<f64> {
+pub(crate) fn cost(
+    st: &Stationary,
+    k0: &SparseRows,
+    sys: &LinearSystem,
+    stop: Stop<'_>,
+) -> Result<f64> {
     let n = st.w.len();
     if sys.n() == 1 {
         let (a, pbar, q) = (sys.a()[(0, 0)], sys.pbar()[(0, 0)], sys.q()[(0, 0)]);
@@ -461,6 +481,7 @@ pub(crate) fn cost(st: &Stationary, k0: &SparseRows, sys: &LinearSystem) -> Resu
                 }
                 *r = acc;
             }
+            stop.check()?;
             let s = t[(i, i)] * t[(j, j)].conj();
             let lu = st.shifted.factor(s)?;
             if !lu.solve(&mut rhs) {
