@@ -128,7 +128,8 @@ pub fn size_bound(k: usize, schedule: &PowerSchedule, attacker_states: usize) ->
     }
 }
 
-/// Largest dense index table (entries) the exploration allocates; past it, a hash map.
+/// Dense index table (u32 entries) the exploration always may allocate; it may grow to 4
+/// `max_states`, at most 2^26 (256 MiB); past that, a hash map.
 const DENSE_TABLE: u128 = 1 << 25;
 
 /// Explores the product from the paper's initial condition, refusing (naming `max_states`) as
@@ -164,7 +165,7 @@ pub fn explore(
             * k as u128
             + s.channel as u128
     };
-    let dense = bound <= DENSE_TABLE.max(4 * max_states as u128).min(1 << 28);
+    let dense = bound <= DENSE_TABLE.max(4 * max_states as u128).min(1 << 26);
     let mut table: Vec<u32> = if dense {
         vec![u32::MAX; bound as usize]
     } else {
