@@ -608,3 +608,43 @@ fn bad_input_is_refused_naming_the_argument() {
     .unwrap();
     starts(e.cost(&paper()).unwrap_err(), "channel:");
 }
+
+/// Past the dense threshold the sparse LU (real and complex) runs: the same checks on a few
+/// hundred states.
+#[test]
+fn sparse_path_matches_j_attack() {
+    let d = OnlineDesign::new(2, 0.6).unwrap();
+    let a = Attack::periodic(7, 40).unwrap();
+    let e = online(0.5, d, Attacker::attack(a.clone()));
+    assert!(e.n_states() > 2 * linsolve::DENSE_MAX, "{}", e.n_states());
+    let mut systems = vec![("scalar", paper())];
+    systems.extend(vector_systems());
+    for (name, sys) in systems {
+        close(
+            e.cost(&sys).unwrap(),
+            sys.j_attack(0.5, d, &a).unwrap(),
+            1e-11,
+            name,
+        );
+    }
+    let r = flag_rates(0.5, d, Some(&a)).unwrap();
+    close(
+        e.flag_rates().unwrap().delivered,
+        r.delivered,
+        1e-12,
+        "delivered",
+    );
+    // ρ(K0) of a finite attack is 0 only when K0 is acyclic; with μ < 1 it still is.
+    assert_eq!(e.rho_k0().unwrap(), 0.0);
+    let e = online(0.5, d, Attacker::attack(Attack::random(0.3).unwrap()));
+    let ge = Channel::gilbert_elliott(0.1, 0.3, 0.6, 0.1, 1.0, 1.0).unwrap();
+    let big = Engine::new(
+        &ge,
+        &PowerSchedule::Online(d),
+        &Attacker::attack(Attack::mask(vec![true; 30]).unwrap()),
+        10_000,
+    )
+    .unwrap();
+    assert!(e.rho_k0().unwrap() > 0.0 && big.rho_k0().unwrap() > 0.0);
+    assert!(big.stationary_residual().unwrap() < 1e-12);
+}
