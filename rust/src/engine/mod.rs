@@ -174,7 +174,9 @@ impl Engine {
     /// Builds the product of `channel`, `schedule` and `attacker` over the states reachable from
     /// the paper's initial condition (high power at k = 1, memory all ones, the attacker at its
     /// start, c_1 stationary; an offline pattern's first symbol is step 1). Refused before
-    /// allocating past `max_states` states; an offline schedule takes no attacker.
+    /// allocating past `max_states` states; an offline schedule takes no attacker. Refused too,
+    /// naming the channel or the attacker, when from some state no packet ever arrives again
+    /// (ρ(K0) = 1).
     pub fn new(
         channel: &Channel,
         schedule: &PowerSchedule,
@@ -197,6 +199,7 @@ impl Engine {
         }
         let automaton = attacker.compile()?;
         let product = product::explore(channel, schedule, &automaton, max_states)?;
+        solve::check_arrivals(&product, attacker.arg())?;
         Ok(Engine {
             product,
             arg: attacker.arg(),

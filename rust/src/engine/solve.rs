@@ -241,8 +241,8 @@ fn closed_class(p: &Product, arg: &str) -> Result<Vec<usize>> {
 impl Stationary {
     /// Solves the stationary law (the balance equations on the closed class with one equation
     /// replaced by pi_r = 1, then normalised), nu and w.
+    /// Every state must reach an arrival ([`check_arrivals`], run when the product is built).
     pub(crate) fn new(p: &Product, arg: &str) -> Result<Self> {
-        check_arrivals(p, arg)?;
         let n = p.n();
         let members = closed_class(p, arg)?;
         let m = members.len();
