@@ -158,9 +158,8 @@ pub(crate) fn check_arrivals(p: &Product, arg: &str) -> Result<()> {
     Ok(())
 }
 
-/// The closed classes of K's graph, by an iterative Tarjan; returns the members of the one
-/// closed class, or refuses (naming `arg`) when there are several.
-fn closed_class(p: &Product, arg: &str) -> Result<Vec<usize>> {
+/// The closed classes of K's graph (members of each), by an iterative Tarjan.
+fn closed_classes(p: &Product) -> Vec<Vec<usize>> {
     let n = p.n();
     let succ = |e: usize| p.k0.row(e).chain(p.k1.row(e)).map(|(f, _)| f);
     let mut index = vec![u32::MAX; n];
@@ -224,86 +223,179 @@ fn closed_class(p: &Product, arg: &str) -> Result<Vec<usize>> {
             leaves[comp[e] as usize] = false;
         }
     }
-    let closed: Vec<u32> = (0..ncomp).filter(|&c| leaves[c as usize]).collect();
-    if closed.len() != 1 {
-        return Err(Error::invalid(
-            arg,
-            format!(
-                "the automaton has {} closed classes; its long-run law would depend on chance \
-                 early on (one is required)",
-                closed.len()
-            ),
-        ));
+    let mut slot = vec![usize::MAX; ncomp as usize];
+    let mut classes: Vec<Vec<usize>> = Vec::new();
+    for (e, &c) in comp.iter().enumerate() {
+        let c = c as usize;
+        if leaves[c] {
+            if slot[c] == usize::MAX {
+                slot[c] = classes.len();
+                classes.push(Vec::new());
+            }
+            classes[slot[c]].push(e);
+        }
     }
-    Ok((0..n).filter(|&e| comp[e] == closed[0]).collect())
+    classes
+}
+
+/// The stationary law of K on one closed class (`members`): the balance equations with the
+/// first replaced by pi_0 = 1, solved by LU, then normalised. Returned per member.
+fn class_law(p: &Product, members: &[usize], arg: &str) -> Result<Vec<f64>> {
+    let n = p.n();
+    let m = members.len();
+    let mut local = vec![u32::MAX; n];
+    for (i, &e) in members.iter().enumerate() {
+        local[e] = i as u32;
+    }
+    // B = (I - K)^T on the class, CSC: column i holds row members[i] of I - K; row 0 of B
+    // replaced by e_0^T.
+    let mut col_ptr = Vec::with_capacity(m + 1);
+    let mut row_idx: Vec<usize> = Vec::new();
+    let mut vals: Vec<f64> = Vec::new();
+    col_ptr.push(0);
+    let mut row: Vec<(usize, f64)> = Vec::new();
+    for (i, &e) in members.iter().enumerate() {
+        row.clear();
+        row.extend(
+            p.k0.row(e)
+                .chain(p.k1.row(e))
+                .map(|(f, v)| (local[f] as usize, -v)),
+        );
+        row.push((i, 1.0));
+        row.sort_unstable_by_key(|x| x.0);
+        let mut last = usize::MAX;
+        for &(j, v) in &row {
+            if j == 0 && i != 0 {
+                continue;
+            }
+            if j == last {
+                *vals.last_mut().expect("pushed") += v;
+            } else {
+                row_idx.push(j);
+                vals.push(v);
+                last = j;
+            }
+        }
+        if i == 0 {
+            // Row 0 of B is e_0^T: column 0 keeps only 1 at row 0.
+            if let Some(pos) = row_idx.iter().position(|&r| r == 0) {
+                vals[pos] = 1.0;
+            }
+        }
+        col_ptr.push(row_idx.len());
+    }
+    let pattern = Pattern {
+        n: m,
+        col_ptr,
+        row_idx,
+    };
+    let sym = pattern.analyse()?;
+    let lu = Factor::new(&pattern, sym.as_ref(), &vals, false)?;
+    let mut x = vec![0.0; m];
+    x[0] = 1.0;
+    if !lu.solve(&mut x) {
+        return Err(Error::invalid(arg, "the balance equations are singular"));
+    }
+    let total: f64 = x.iter().sum();
+    Ok(x.into_iter().map(|v| (v / total).max(0.0)).collect())
+}
+
+/// The probability that the chain started from `init` ends in each of `classes`: the mass
+/// already there plus y K(T -> class), y = init_T (I - K_TT)^-1 over the transient states T.
+fn absorption(p: &Product, classes: &[Vec<usize>], arg: &str) -> Result<Vec<f64>> {
+    let n = p.n();
+    let mut class_of = vec![usize::MAX; n];
+    for (c, members) in classes.iter().enumerate() {
+        for &e in members {
+            class_of[e] = c;
+        }
+    }
+    let transient: Vec<usize> = (0..n).filter(|&e| class_of[e] == usize::MAX).collect();
+    let mut mass = vec![0.0; classes.len()];
+    for e in 0..n {
+        if class_of[e] != usize::MAX {
+            mass[class_of[e]] += p.init[e];
+        }
+    }
+    if transient.is_empty() {
+        return Ok(mass);
+    }
+    let mut local = vec![usize::MAX; n];
+    for (i, &e) in transient.iter().enumerate() {
+        local[e] = i;
+    }
+    // (I - K_TT)^T y' = init_T': column i of the CSC is row transient[i] of I - K_TT, so the
+    // CSC matrix is (I - K_TT)^T itself.
+    let m = transient.len();
+    let mut col_ptr = vec![0];
+    let mut row_idx = Vec::new();
+    let mut vals = Vec::new();
+    let mut row: Vec<(usize, f64)> = Vec::new();
+    for (i, &e) in transient.iter().enumerate() {
+        row.clear();
+        row.extend(
+            p.k0.row(e)
+                .chain(p.k1.row(e))
+                .filter(|&(f, _)| local[f] != usize::MAX)
+                .map(|(f, v)| (local[f], -v)),
+        );
+        row.push((i, 1.0));
+        row.sort_unstable_by_key(|x| x.0);
+        let mut last = usize::MAX;
+        for &(j, v) in &row {
+            if j == last {
+                *vals.last_mut().expect("pushed") += v;
+            } else {
+                row_idx.push(j);
+                vals.push(v);
+                last = j;
+            }
+        }
+        col_ptr.push(row_idx.len());
+    }
+    let pattern = Pattern {
+        n: m,
+        col_ptr,
+        row_idx,
+    };
+    let sym = pattern.analyse()?;
+    let lu = Factor::new(&pattern, sym.as_ref(), &vals, false)?;
+    let mut y: Vec<f64> = transient.iter().map(|&e| p.init[e]).collect();
+    if !lu.solve(&mut y) {
+        return Err(Error::invalid(arg, "the transient states are never left"));
+    }
+    for (i, &e) in transient.iter().enumerate() {
+        for (f, v) in p.k0.row(e).chain(p.k1.row(e)) {
+            if class_of[f] != usize::MAX {
+                mass[class_of[f]] += y[i] * v;
+            }
+        }
+    }
+    Ok(mass)
 }
 
 impl Stationary {
-    /// Solves the stationary law (the balance equations on the closed class with one equation
-    /// replaced by pi_r = 1, then normalised), nu and w.
-    /// Every state must reach an arrival ([`check_arrivals`], run when the product is built).
+    /// Solves the long-run law from the paper's initial condition, nu and w. With one closed
+    /// class it is the stationary law of K; with several (a periodic channel beside an offline
+    /// pattern, an automaton with absorbing parts) it is the Cesàro limit from the initial law:
+    /// each class's stationary law weighted by the chance of ending in it. Every state must
+    /// reach an arrival ([`check_arrivals`], run when the product is built).
     pub(crate) fn new(p: &Product, arg: &str) -> Result<Self> {
         let n = p.n();
-        let members = closed_class(p, arg)?;
-        let m = members.len();
-        let mut local = vec![u32::MAX; n];
-        for (i, &e) in members.iter().enumerate() {
-            local[e] = i as u32;
-        }
-        // B = (I - K)^T on the class, CSC: column i holds row members[i] of I - K, negated
-        // off the diagonal; row r = 0 replaced by e_0^T.
-        let mut col_ptr = Vec::with_capacity(m + 1);
-        let mut row_idx: Vec<usize> = Vec::new();
-        let mut vals: Vec<f64> = Vec::new();
-        col_ptr.push(0);
-        let mut row: Vec<(usize, f64)> = Vec::new();
-        for (i, &e) in members.iter().enumerate() {
-            row.clear();
-            row.extend(
-                p.k0.row(e)
-                    .chain(p.k1.row(e))
-                    .map(|(f, v)| (local[f] as usize, -v)),
-            );
-            row.push((i, 1.0));
-            row.sort_unstable_by_key(|x| x.0);
-            let mut last = usize::MAX;
-            for &(j, v) in &row {
-                if j == 0 && i != 0 {
-                    continue;
-                }
-                if j == last {
-                    *vals.last_mut().expect("pushed") += v;
-                } else {
-                    row_idx.push(j);
-                    vals.push(v);
-                    last = j;
-                }
-            }
-            if i == 0 {
-                // Row 0 of B is e_0^T: column 0 keeps only 1 at row 0.
-                let start = col_ptr[0];
-                if let Some(pos) = row_idx[start..].iter().position(|&r| r == 0) {
-                    vals[start + pos] = 1.0;
-                }
-            }
-            col_ptr.push(row_idx.len());
-        }
-        let pattern = Pattern {
-            n: m,
-            col_ptr,
-            row_idx,
+        let classes = closed_classes(p);
+        let weights = if classes.len() == 1 {
+            vec![1.0]
+        } else {
+            absorption(p, &classes, arg)?
         };
-        let sym = pattern.analyse()?;
-        let lu = Factor::new(&pattern, sym.as_ref(), &vals, false)?;
-        let mut x = vec![0.0; m];
-        x[0] = 1.0;
-        if !lu.solve(&mut x) {
-            return Err(Error::invalid(arg, "the balance equations are singular"));
-        }
-        let total: f64 = x.iter().sum();
         let mut pi = vec![0.0; n];
-        for (i, &e) in members.iter().enumerate() {
-            pi[e] = (x[i] / total).max(0.0);
+        for (members, &wt) in classes.iter().zip(&weights) {
+            if wt <= 0.0 {
+                continue;
+            }
+            for (&e, x) in members.iter().zip(class_law(p, members, arg)?) {
+                pi[e] = wt * x;
+            }
         }
         let mut nu = vec![0.0; n];
         p.k1.left_mul(&pi, &mut nu);

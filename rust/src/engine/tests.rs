@@ -647,3 +647,53 @@ fn sparse_path_matches_j_attack() {
     assert!(e.rho_k0().unwrap() > 0.0 && big.rho_k0().unwrap() > 0.0);
     assert!(big.stationary_residual().unwrap() < 1e-12);
 }
+
+/// A periodic channel (the state flips every step) beside an offline pattern of period 2: the
+/// product has two closed classes, entered with the stationary c_1's probabilities 1/2 each.
+/// High power at even phases always arrives; at odd phases a low-power packet arrives only in
+/// channel state 0. Starting in c_1 = 0 the holding time alternates 0, 1; starting in c_1 = 1
+/// it stays 0. So J = (tr_0 + tr_1)/4 + tr_0/2, and J_k tends to it.
+#[test]
+fn two_closed_classes_mix_by_the_initial_law() {
+    let sys = paper();
+    let ch = Channel::markov(
+        vec![vec![0.0, 1.0], vec![1.0, 0.0]],
+        vec![1.0, 0.0],
+        vec![1.0, 1.0],
+    )
+    .unwrap();
+    let e = Engine::new(
+        &ch,
+        &PowerSchedule::Offline(vec![true, false]),
+        &Attacker::None,
+        100,
+    )
+    .unwrap();
+    let tr = sys.h_traces(1);
+    let want = (tr[0] + tr[1]) / 4.0 + tr[0] / 2.0;
+    close(e.cost(&sys).unwrap(), want, 1e-13, "two classes");
+    close(e.high_power_rate().unwrap(), 0.5, 1e-13, "rate");
+    let (_, j) = e.cost_curve(&sys, 2000).unwrap();
+    close(j[1999], want, 1e-3, "J_k");
+    // A hand-made attacker with two absorbing states behind a coin: deliver every flag from
+    // then on, or none. J is the mixture of J_on and J_max.
+    let d = OnlineDesign::fixed(2).unwrap();
+    let mv = |p, deliver, next| Move { p, deliver, next };
+    let a = AttackerAutomaton::new(
+        vec![
+            vec![mv(0.3, true, 1), mv(0.7, false, 2)],
+            vec![mv(1.0, true, 1)],
+            vec![mv(1.0, false, 2)],
+        ],
+        vec![
+            vec![mv(1.0, false, 0)],
+            vec![mv(1.0, false, 1)],
+            vec![mv(1.0, false, 2)],
+        ],
+        0,
+    )
+    .unwrap();
+    let e = online(0.5, d, Attacker::Automaton(a));
+    let want = 0.3 * sys.j_online(0.5, d).unwrap() + 0.7 * sys.j_max(0.5).unwrap();
+    close(e.cost(&sys).unwrap(), want, 1e-12, "absorbing attacker");
+}
