@@ -44,6 +44,7 @@ use fakeack::schedules::{offline_schedule, Ratio};
 use fakeack::spectral::spectral_radius;
 use fakeack::LinearSystem;
 use fakeack::{stationary, sweep, Attack};
+use fakeack::{Attacker, Channel, Engine, PowerSchedule, Scenario};
 
 /// The paper's example: A = 1.2, C = 0.7, Q = R = 0.8, λ = 0.5.
 const LAM: f64 = 0.5;
@@ -352,6 +353,59 @@ fn bench_game(c: &mut Criterion) {
     g.finish();
 }
 
+/// The general exact engine: the paper's scenario with construction, a Gilbert-Elliott channel
+/// under a long blocking period (~10^4 and ~10^6 states, scalar) and n_x = 10 on ~10^3 states.
+fn bench_engine(c: &mut Criterion) {
+    let mut g = c.benchmark_group("engine");
+    let sys = paper_system();
+    let design = OnlineDesign::fixed(2).unwrap();
+    g.bench_function("paper_scenario_cost_with_construction", |b| {
+        b.iter(|| {
+            let s = Scenario::new(
+                sys.clone(),
+                Channel::bernoulli(black_box(0.5)).unwrap(),
+                PowerSchedule::Online(design),
+                Attacker::attack(Attack::periodic(1, 5).unwrap()),
+            )
+            .unwrap();
+            black_box(s.cost().unwrap())
+        })
+    });
+    let ge = Channel::gilbert_elliott(0.1, 0.4, 0.7, 0.2, 1.0, 1.0).unwrap();
+    let sched = PowerSchedule::Online(design);
+    for t in [1000u64, 125_000] {
+        let attacker = Attacker::attack(Attack::periodic(t / 10, t).unwrap());
+        let n = Engine::new(&ge, &sched, &attacker, 10_000_000)
+            .unwrap()
+            .n_states();
+        if t > 10_000 {
+            g.sample_size(10);
+            g.measurement_time(Duration::from_secs(20));
+        }
+        g.bench_function(
+            BenchmarkId::new("gilbert_elliott_cost", format!("{n}_states")),
+            |b| {
+                b.iter(|| {
+                    let e = Engine::new(&ge, &sched, &attacker, 10_000_000).unwrap();
+                    black_box(e.cost(&sys).unwrap())
+                })
+            },
+        );
+    }
+    g.sample_size(20);
+    let (a, cm, q, r) = random_system(10);
+    let sys10 = LinearSystem::new(a, cm, q, r).unwrap();
+    let bern = Channel::bernoulli(0.6).unwrap();
+    let attacker = Attacker::attack(Attack::periodic(60, 250).unwrap());
+    let e = Engine::new(&bern, &sched, &attacker, 1_000_000).unwrap();
+    let _ = e.stationary_residual().unwrap();
+    g.bench_function(
+        BenchmarkId::new("n_x_10_cost", format!("{}_states", e.n_states())),
+        |b| b.iter(|| black_box(e.cost(&sys10).unwrap())),
+    );
+    g.finish();
+}
+
 criterion_group!(
     benches,
     bench_pbar,
@@ -359,6 +413,7 @@ criterion_group!(
     bench_sweep,
     bench_random_sweep,
     bench_montecarlo,
-    bench_game
+    bench_game,
+    bench_engine
 );
 criterion_main!(benches);

@@ -3,7 +3,8 @@
 //!
 //! `cargo run --release --example paper` prints one line per quantity, name then value.
 
-use fakeack::{design_online, Attack, LinearSystem, Ratio};
+use fakeack::Scenario;
+use fakeack::{design_online, Attack, Attacker, Channel, LinearSystem, PowerSchedule, Ratio};
 
 fn main() -> Result<(), fakeack::Error> {
     let system = LinearSystem::scalar(1.2, 0.7, 0.8, 0.8)?;
@@ -23,5 +24,12 @@ fn main() -> Result<(), fakeack::Error> {
     println!("j_max {}", system.j_max(lam)?);
     println!("beta_bar_limit {}", bar.limit);
     println!("beta_bar_t60 {finite}");
+    let engine = Scenario::new(
+        system.clone(),
+        Channel::bernoulli(lam)?,
+        PowerSchedule::Online(design),
+        Attacker::attack(Attack::periodic(1, 5)?),
+    )?;
+    println!("engine_j_attack_1_5 {}", engine.cost()?);
     Ok(())
 }

@@ -11,6 +11,7 @@ __all__ = [
     "ConvergenceError",
     "DEFAULT_MAX_ITER",
     "DEFAULT_TOL",
+    "Engine",
     "MAX_BUILD_STATES",
     "MAX_VECTOR_STATES",
     "LinearSystem",
@@ -100,6 +101,37 @@ class LinearSystem:
     def worst_mask(
         self, lam: float, z0: int, mu: float, t: int, blocked: int
     ) -> tuple[list[bool], float, float]: ...
+
+_Coo = tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64]]
+_Moves = list[list[tuple[float, bool, int]]]
+
+@final
+class Engine:
+    def __new__(
+        cls,
+        P: list[list[float]],
+        low: list[float],
+        high: list[float],
+        z0: int,
+        mu: float,
+        offline: list[bool] | None,
+        attack: Attack | None,
+        min_gap: int,
+        mimicry: tuple[list[list[float]], list[float], list[float], int, float] | None,
+        automaton: tuple[_Moves, _Moves, int] | None,
+        max_states: int,
+    ) -> Engine: ...
+    @property
+    def n_states(self) -> int: ...
+    def cost(self, system: LinearSystem) -> float: ...
+    def stability_index(self, system: LinearSystem) -> float: ...
+    def high_power_rate(self) -> float: ...
+    def flag_rates(self) -> tuple[float, float, float]: ...
+    def holding_time_law(self, n: int) -> npt.NDArray[np.float64]: ...
+    def cost_curve(
+        self, system: LinearSystem, horizon: int
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]: ...
+    def automaton(self) -> tuple[list[str], _Coo, _Coo]: ...
 
 def offline_schedule(p: int, q: int) -> npt.NDArray[np.int64]: ...
 def high_power_rate(lam: float, z0: int, mu: float) -> float: ...

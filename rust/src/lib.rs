@@ -51,7 +51,8 @@
 //!   random number generator ([`rng`]);
 //! * [`grid`]: parameter studies over many cells; [`analysis`]: the methods of [`LinearSystem`]
 //!   that tie the routes together; [`attack`] and [`error`]: what all of them share;
-//! * [`engine`]: reserved for a general exact engine.
+//! * [`engine`]: the general exact engine, one automaton of channel × detector × sensor ×
+//!   attacker for any Markov channel, schedule and finite attacker ([`Scenario`]).
 //!
 //! The paths of the former flat layout (`fakeack::riccati`, `fakeack::pattern`,
 //! `fakeack::online`, ...) are re-exported here and still resolve.
@@ -85,6 +86,7 @@ mod bindings;
 
 pub use analysis::{flag_rates, BetaBar, Decision, FlagRates, MaskSearch, Schedule};
 pub use attack::Attack;
+pub use engine::{Attacker, AttackerAutomaton, Channel, Engine, Move, PowerSchedule, Scenario};
 pub use error::{Error, Result};
 pub use montecarlo::{McConfig, McResult, McSchedule, Mode, Protocol};
 pub use renewal::sweep::Sweep;

@@ -4,8 +4,9 @@
 //!
 //! One file per Python subpackage that calls it: `model` (the system class and its costs, the
 //! schedules), `attacks` (the attack class, chains and stationary laws), `detection` (flag-ACK
-//! rates), `montecarlo` (the Monte Carlo), `game` (the closed-loop game) and `studies` (parameter
-//! grids). All of them register in the one module `fakeack._fakeack` below.
+//! rates), `engine` (the general exact engine), `montecarlo` (the Monte Carlo), `game` (the
+//! closed-loop game) and `studies` (parameter grids). All of them register in the one module
+//! `fakeack._fakeack` below.
 
 use nalgebra::DMatrix;
 use numpy::ndarray::Array2;
@@ -19,6 +20,7 @@ use crate::OnlineDesign;
 
 mod attacks;
 mod detection;
+mod engine;
 mod game;
 mod model;
 mod montecarlo;
@@ -89,6 +91,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add_class::<model::PySystem>()?;
     m.add_class::<attacks::PyAttack>()?;
+    m.add_class::<engine::PyEngine>()?;
     m.add("ConvergenceError", m.py().get_type::<ConvergenceError>())?;
     m.add_function(wrap_pyfunction!(model::offline_schedule, m)?)?;
     m.add_function(wrap_pyfunction!(model::high_power_rate, m)?)?;
