@@ -17,7 +17,6 @@ import fakeack as fa
 from conftest import names
 from fakeack import _fakeack
 from fakeack.attacks import as_automaton
-from fakeack.engine import EngineUnavailableError, engine_available
 
 S = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
 GE = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
@@ -28,7 +27,6 @@ ONOFF = fa.AttackerAutomaton(
         1: {"flag": [(1.0, False, 1)], "quiet": [(0.8, False, 1), (0.2, False, 0)]},
     }
 )
-needs_engine = pytest.mark.skipif(not engine_available(), reason="the compiled core has no Engine yet")
 
 
 # --- validation (no engine needed) -----------------------------------------------------------
@@ -40,9 +38,12 @@ def test_repr_and_attributes():
         "Scenario(system=LinearSystem(A=1.2, C=0.7, Q=0.8, R=0.8), channel=BernoulliChannel(lam=0.5), "
         "schedule=OnlineDesign(z0=2, mu=1.0))"
     )
-    sc = fa.Scenario(S, GE, fa.OfflineSchedule(pattern="100"), "1/5")
+    sc = fa.Scenario(S, GE, fa.OnlineDesign(3), "1/5")
     assert sc.attack == fa.PeriodicBlocking(1, 5) and sc.channel is GE
-    assert repr(sc).endswith("schedule=OfflineSchedule(pattern='100'), attack=PeriodicBlocking(r=1, t=5))")
+    assert repr(sc).endswith("schedule=OnlineDesign(z0=3, mu=1.0), attack=PeriodicBlocking(r=1, t=5))")
+    assert repr(fa.Scenario(S, GE, fa.OfflineSchedule(pattern="100"))).endswith(
+        "schedule=OfflineSchedule(pattern='100'))"
+    )
 
 
 @pytest.mark.parametrize(
@@ -66,17 +67,13 @@ def test_validation_names_the_argument(kwargs, exc, arg):
         fa.Scenario(**args)
 
 
-def test_offline_mimicry_with_its_own_design_is_accepted():
-    fa.Scenario(S, GE, fa.OfflineSchedule("1/7"), fa.MimicryAttack(design=fa.OnlineDesign(2)))
-
-
-@pytest.mark.skipif(engine_available(), reason="the engine is present")
-def test_without_the_engine_every_method_says_so():
-    sc = fa.Scenario(S, GE, fa.OnlineDesign(2))
-    for call in (sc.cost, sc.high_power_rate, sc.flag_rates, sc.stability_index, lambda: sc.cost_curve(5)):
-        with pytest.raises(EngineUnavailableError, match="no exact engine"):
-            call()
-    assert "no exact engine" in sc._repr_html_()
+@pytest.mark.parametrize(
+    "attack", ["1/5", fa.MimicryAttack(design=fa.OnlineDesign(2)), fa.RandomBlocking(0.5)]
+)
+def test_an_offline_scenario_takes_no_attack(attack):
+    """The offline sensor ignores flag-ACKs, so an attack is refused, as fa.simulate refuses it."""
+    with pytest.raises(ValueError, match=names("attack")):
+        fa.Scenario(S, GE, fa.OfflineSchedule("1/7"), attack)
 
 
 # --- the conversions, against a stand-in for the binding -------------------------------------
@@ -158,7 +155,7 @@ def test_conversions_of_channel_schedule_and_attacks(fake):
     assert sc._engine.args[-1] == 50
     sc = fa.Scenario(S, GE, fa.OnlineDesign(2, 0.5), fa.MimicryAttack())
     assert sc._engine.args[8] == ([[0.9, 0.1], [0.3, 0.7]], [0.9, 0.2], [1.0, 1.0], 2, 0.5)
-    sc = fa.Scenario(S, GE, fa.OfflineSchedule("1/3"), fa.MimicryAttack(0.5, fa.OnlineDesign(2)))
+    sc = fa.Scenario(S, GE, fa.OnlineDesign(3), fa.MimicryAttack(0.5, fa.OnlineDesign(2)))
     assert sc._engine.args[8] == ([[1.0]], [0.5], [1.0], 2, 1.0)
     sc = fa.Scenario(S, GE, fa.OnlineDesign(2), ONOFF)
     flag, quiet, start = sc._engine.args[9]
@@ -215,7 +212,6 @@ def scenario_vs_reference(channel, design, attack, attacker, rtol=1e-9):
     return sc
 
 
-@needs_engine
 @pytest.mark.parametrize("channel", [GE, GE2], ids=repr)
 @pytest.mark.parametrize(
     "attack, attacker",
@@ -232,7 +228,6 @@ def test_engine_equals_the_reference(channel, attack, attacker, design):
     scenario_vs_reference(channel, design, attack, attacker)
 
 
-@needs_engine
 @pytest.mark.parametrize("channel", [GE, GE2], ids=repr)
 def test_engine_mimicry_equals_the_reference(channel):
     design = fa.OnlineDesign(2, 0.6)
@@ -244,13 +239,11 @@ def test_engine_mimicry_equals_the_reference(channel):
     assert_allclose(aut.cost(), sc.cost(), rtol=1e-10)
 
 
-@needs_engine
 @pytest.mark.parametrize("pattern", ["0", "1000000", "0110", "10"])
 def test_engine_offline_patterns(pattern):
     scenario_vs_reference(GE, fa.OfflineSchedule(pattern=pattern), None, None)
 
 
-@needs_engine
 @pytest.mark.parametrize("attack", ATTACKS, ids=str)
 @pytest.mark.parametrize("mu", [1.0, 0.6])
 def test_engine_on_the_paper_channel_equals_today_routes(attack, mu):
@@ -263,7 +256,6 @@ def test_engine_on_the_paper_channel_equals_today_routes(attack, mu):
     )
 
 
-@needs_engine
 @pytest.mark.parametrize("attack", BUILT_IN, ids=str)
 def test_engine_built_in_attack_equals_its_automaton(attack):
     a = fa.Scenario(S, GE, fa.OnlineDesign(2, 0.8), attack)
@@ -272,7 +264,6 @@ def test_engine_built_in_attack_equals_its_automaton(attack):
     assert_allclose(b.flag_rates(), a.flag_rates(), rtol=1e-10, atol=1e-15)
 
 
-@needs_engine
 def test_engine_stability_and_errors():
     blocked = fa.MaskBlocking([1])
     assert_allclose(fa.Scenario(S, 0.5, fa.OnlineDesign(2), blocked).cost(), fa.j_max(S, 0.5), rtol=1e-9)
@@ -288,7 +279,6 @@ def test_engine_stability_and_errors():
         fa.Scenario(S, 0.5, fa.OnlineDesign(2), fa.PeriodicBlocking(1, 10**6), max_states=100).cost()
 
 
-@needs_engine
 @settings(max_examples=25)
 @given(scenarios())
 def test_engine_random_scenarios_agree_with_the_reference(case):
@@ -331,12 +321,5 @@ def test_rate_matching_with_min_gap_through_the_stand_in(fake):
         fa.rate_matching_attack(0.5, 2, 0.3, min_gap=0)
 
 
-@needs_engine
 def test_rate_matching_with_min_gap():
     check_rate_matching(fa.rate_matching_attack(0.5, 2, 0.3, min_gap=3), 2)
-
-
-@pytest.mark.skipif(engine_available(), reason="the engine is present")
-def test_rate_matching_with_min_gap_needs_the_engine():
-    with pytest.raises(EngineUnavailableError):
-        fa.rate_matching_attack(0.5, 2, 0.3, min_gap=3)

@@ -1,12 +1,10 @@
 """The exact engine: any channel, sensor schedule and attacker automaton, as one finite automaton
 whose stationary law and coupled Stein equations give every cost exactly (see :class:`Scenario`)."""
 
-from .scenario import DEFAULT_MAX_STATES, EngineAutomaton, EngineUnavailableError, Scenario, engine_available
+from .scenario import DEFAULT_MAX_STATES, EngineAutomaton, Scenario
 
 __all__ = [
     "Scenario",
     "EngineAutomaton",
-    "EngineUnavailableError",
     "DEFAULT_MAX_STATES",
-    "engine_available",
 ]

@@ -36,9 +36,7 @@ from ..montecarlo.curves import TraceCurve
 __all__ = [
     "Scenario",
     "EngineAutomaton",
-    "EngineUnavailableError",
     "DEFAULT_MAX_STATES",
-    "engine_available",
 ]
 
 #: Largest automaton (states of E) a scenario builds unless told otherwise.
@@ -47,19 +45,6 @@ DEFAULT_MAX_STATES = 1_000_000
 MAX_OFFLINE_PERIOD = 10_000_000
 
 ScenarioAttack = Attack | MimicryAttack | AttackerAutomaton
-
-
-class EngineUnavailableError(RuntimeError):
-    """The compiled module of this installation has no exact engine (``fakeack._fakeack.Engine``)."""
-
-
-def _engine_class() -> Any:
-    return getattr(_fakeack, "Engine")  # noqa: B009  (absent from older builds and from the stub)
-
-
-def engine_available() -> bool:
-    """Whether the compiled core provides the exact engine."""
-    return hasattr(_fakeack, "Engine")
 
 
 class EngineAutomaton(NamedTuple):
@@ -104,12 +89,11 @@ class Scenario:
         :class:`fakeack.GilbertElliott`, or a float ``lam`` (the paper's channel).
     schedule : OnlineDesign or OfflineSchedule
         The ACK-based online schedule ``(z0, mu)``, or an offline one (by its ratio or any
-        pattern). An offline sensor ignores flag-ACKs, so an attack does not change its cost.
+        pattern). An offline sensor ignores flag-ACKs, so it takes no attack.
     attack : attack, MimicryAttack, AttackerAutomaton or None, optional
         Any built-in attack (or a spelling ``as_attack`` reads, e.g. ``"1/5"``), including
         :class:`fakeack.FlagInjection` with ``min_gap``; :class:`fakeack.MimicryAttack`, whose
-        ``None`` channel and design are this scenario's (an offline scenario has no design, so
-        mimicry then needs ``design=``); or any :class:`fakeack.AttackerAutomaton`.
+        ``None`` channel and design are this scenario's; or any :class:`fakeack.AttackerAutomaton`.
     max_states : int, keyword-only, optional
         Refuse (ValueError) an automaton E of more states than this, before allocating it
         (default 10^6).
@@ -120,11 +104,6 @@ class Scenario:
         For invalid arguments (naming them). Once the engine is built, ValueError naming the
         channel or the attack when from some state no arrival can ever happen
         (:math:`\rho(K_0) = 1`).
-
-    Notes
-    -----
-    When the compiled module has no engine (an older build), the scenario is still validated, and
-    every method raises ``fakeack.engine.EngineUnavailableError``.
 
     Examples
     --------
@@ -150,8 +129,10 @@ class Scenario:
         self.schedule: OnlineDesign | OfflineSchedule = _schedule(schedule)
         self.attack: ScenarioAttack | None = _attack(attack)
         self.max_states = as_int("max_states", max_states, minimum=1)
+        if isinstance(self.schedule, OfflineSchedule) and self.attack is not None:
+            raise ValueError("attack: an offline schedule ignores flag-ACKs, so an attack has no effect")
         self._args = self._binding_args()
-        self._engine: Any = _engine_class()(*self._args) if engine_available() else None
+        self._engine = _fakeack.Engine(*self._args)
 
     # --- conversion ----------------------------------------------------------------------------
 
@@ -184,29 +165,15 @@ class Scenario:
         return (P, low, high, z0, mu, offline, att, min_gap, mimicry, automaton, self.max_states)
 
     def _design(self) -> OnlineDesign:
-        if isinstance(self.schedule, OnlineDesign):
-            return self.schedule
-        raise ValueError(
-            "attack: a MimicryAttack in an offline scenario needs its own design= (the virtual "
-            "detector); the offline sensor has none"
-        )
-
-    def _get(self) -> Any:
-        if self._engine is None:
-            if not engine_available():
-                raise EngineUnavailableError(
-                    "this build of fakeack._fakeack has no exact engine (Engine); rebuild the extension "
-                    "(maturin develop) from a source tree that has it"
-                )
-            self._engine = _engine_class()(*self._args)
-        return self._engine
+        assert isinstance(self.schedule, OnlineDesign)  # offline scenarios take no attack
+        return self.schedule
 
     # --- results -------------------------------------------------------------------------------
 
     @property
     def n_states(self) -> int:
         """The number of states of the automaton E."""
-        return int(self._get().n_states)
+        return int(self._engine.n_states)
 
     def cost(self) -> float:
         r"""The long-run average cost :math:`J = \lim \frac1T\sum_{k\le T}\mathrm{Tr}\,\mathbb E P_k`.
@@ -217,7 +184,7 @@ class Scenario:
             :math:`\mathrm{Tr}\sum_e \nu_e Z_e` from the coupled Stein equations; ``inf`` when
             :math:`\rho(K_0)\rho(A)^2 \ge 1` (never NaN).
         """
-        return float(self._get().cost(self._core_system))
+        return float(self._engine.cost(self._core_system))
 
     def stability_index(self) -> float:
         r""":math:`\rho(K_0)\,\rho(A)^2`: the cost is finite iff it is below 1.
@@ -227,11 +194,11 @@ class Scenario:
         attacks. With every flag-ACK blocked on the paper's channel it is
         :math:`(1-\lambda)\rho(A)^2` (Model note 5).
         """
-        return float(self._get().stability_index(self._core_system))
+        return float(self._engine.stability_index(self._core_system))
 
     def high_power_rate(self) -> float:
         """The long-run fraction of steps at high power (online: the rate of flag-ACKs received)."""
-        return float(self._get().high_power_rate())
+        return float(self._engine.high_power_rate())
 
     def energy_per_step(self, Delta: float, delta: float) -> float:
         r"""Long-run energy per step, :math:`\delta + (\Delta - \delta) f` with f :meth:`high_power_rate`.
@@ -257,7 +224,7 @@ class Scenario:
             ``(sent, delivered, forged)``; ``.blocked`` is ``sent - (delivered - forged)``, the
             genuine flag-ACKs that did not reach the sensor.
         """
-        sent, delivered, forged = self._get().flag_rates()
+        sent, delivered, forged = self._engine.flag_rates()
         return FlagRates(float(sent), float(delivered), float(forged))
 
     def holding_time_law(self, n: int) -> npt.NDArray[np.float64]:
@@ -274,7 +241,7 @@ class Scenario:
             ``(n + 1,)``, summing to 1.
         """
         n = as_int("n", n, minimum=1)
-        return np.asarray(self._get().holding_time_law(n), dtype=np.float64)
+        return np.asarray(self._engine.holding_time_law(n), dtype=np.float64)
 
     def cost_curve(self, horizon: int = 200) -> TraceCurve:
         r""":math:`\mathbb E\,\mathrm{Tr}\,P_k` and :math:`J_k` for k = 1..horizon, exactly.
@@ -288,7 +255,7 @@ class Scenario:
             Number of steps (default 200).
         """
         horizon = as_int("horizon", horizon, minimum=1)
-        trace, j_k = self._get().cost_curve(self._core_system, horizon)
+        trace, j_k = self._engine.cost_curve(self._core_system, horizon)
         return TraceCurve(np.arange(1, horizon + 1), np.asarray(trace), np.asarray(j_k))
 
     def automaton(self) -> EngineAutomaton:
@@ -297,7 +264,7 @@ class Scenario:
         ``K0 + K1`` is row-stochastic; ``K0[e, f]`` is the probability of moving from e to f
         with a lost packet, ``K1[e, f]`` with an arrival.
         """
-        labels, k0, k1 = self._get().automaton()
+        labels, k0, k1 = self._engine.automaton()
         n = len(labels)
 
         def csr(coo: tuple[Any, Any, Any]) -> sp.csr_array:
@@ -318,15 +285,12 @@ class Scenario:
             ("schedule", str(self.schedule)),
             ("attack", "none" if self.attack is None else str(self.attack)),
         ]
-        if engine_available():
-            j = self.cost()
-            items += [
-                ("states of E", self.n_states),
-                ("J", j),
-                ("stability index", self.stability_index()),
-                ("high-power rate", self.high_power_rate()),
-            ]
-            note = "" if math.isfinite(j) else "J is infinite: rho(K0) rho(A)^2 >= 1."
-        else:
-            note = "This build of the compiled core has no exact engine."
+        j = self.cost()
+        items += [
+            ("states of E", self.n_states),
+            ("J", j),
+            ("stability index", self.stability_index()),
+            ("high-power rate", self.high_power_rate()),
+        ]
+        note = "" if math.isfinite(j) else "J is infinite: rho(K0) rho(A)^2 >= 1."
         return key_values("Scenario", items, note)
