@@ -37,6 +37,12 @@ Tasks (``--tasks``, default all):
   ``FlagInjection(0.05)``) against the vectorised numpy baseline ``numpy_protocol.simulate``,
   same runs and horizon; the two J must agree within 4 combined standard errors. fakeack uses every
   core, numpy one. Skipped if the compiled module has no ``simulate`` yet.
+* ``engine``: ``fa.Scenario(...).cost()`` (construction included) on a Gilbert-Elliott channel
+  (p = 0.1, q = 0.3, λ_good = 0.9, λ_bad = 0.2) under periodic blocking of r of every t flag-ACKs,
+  z0 = 2, sizes |E| ≈ 1e3 and 1e4 states of the automaton, against the explicit chain of
+  (τ, e) a researcher would write (``benches/engine_peer.py``: τ truncated where its tail is below
+  1e-12, the balance equations solved with ``scipy.sparse.linalg.spsolve``, COLAMD ordering), given
+  K0, K1 and the truncation level outside its timed region.
 * ``abi3`` (only when asked for, with ``--abi3-wheels ABI3.whl SPECIFIC.whl``): the shipped abi3
   build against a version-specific build of the same code, call by call in fresh processes (see
   ``benches/abi3.py``). The "speedup" column is specific / abi3: below 1 where abi3 is slower.
@@ -102,7 +108,7 @@ CHAINS = {
 }
 QUANTECON_MAX_STATES = 5_000
 NAIVE_TIMED_MAX_STATES = 2_000_000
-TASKS = ("pbar", "stationary", "sweep", "montecarlo")
+TASKS = ("pbar", "stationary", "sweep", "montecarlo", "engine")
 EXTRA_TASKS = ("abi3",)  # run only when named in --tasks
 
 
@@ -486,6 +492,35 @@ def task_montecarlo(b: Bench, quick: bool) -> None:
 # ----------------------------------------------------------------------------- main
 
 
+# (size label, r, t): Gilbert-Elliott x PeriodicBlocking(r, t) with z0 = 2; about 5.8 states per t.
+ENGINE_SIZES = (("1e3", 10, 170), ("1e4", 100, 1_720))
+
+
+def task_engine(b: Bench, quick: bool) -> None:
+    import engine_peer
+
+    sys_ = fa.LinearSystem(*PAPER)
+    channel = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
+    design = fa.OnlineDesign(2)
+    for label, r, t in ENGINE_SIZES[:1] if quick else ENGINE_SIZES:
+        attack = fa.PeriodicBlocking(r, t)
+        t_fa, j_fa = b.time(lambda attack=attack: fa.Scenario(sys_, channel, design, attack).cost())
+        sc = fa.Scenario(sys_, channel, design, attack)
+        _, K0, K1 = sc.automaton()
+        levels = engine_peer.truncation(sc)
+        tr = engine_peer.traces(sys_.A, sys_.Q, sys_.pbar, levels)
+        size = f"{label} ({sc.n_states} states, {levels} levels)"
+        peer = "explicit (tau, e) chain, scipy spsolve"
+        j_peer, t_peer = engine_peer.explicit_j_limited(K0, K1, levels, tr)  # one run: seconds or more
+        if j_peer is None:
+            b.add(Row("engine", size, peer, t_fa, None, f"J = {j_fa:.6f}; peer: {t_peer}"))
+            continue
+        if not math.isclose(j_fa, j_peer, rel_tol=1e-9):
+            b.disagree("engine", size, peer, t_fa, f"J {j_fa!r} against {j_peer!r}")
+            continue
+        b.add(Row("engine", size, peer, t_fa, t_peer, f"J = {j_fa:.6f}"))
+
+
 def task_abi3(b: Bench, wheels: list[str] | None, rounds: int) -> None:
     """The abi3 wheel against a version-specific one: the same calls, alternating processes."""
     import abi3
@@ -567,6 +602,8 @@ def main(argv: list[str] | None = None) -> int:
             task_sweep(b, args.quick, naive_budget)
         elif task == "montecarlo":
             task_montecarlo(b, args.quick)
+        elif task == "engine":
+            task_engine(b, args.quick)
         elif task == "abi3":
             task_abi3(b, args.abi3_wheels, args.abi3_rounds)
     print(f"done in {time.perf_counter() - t0:.0f} s, load average {os.getloadavg()[0]:.2f}")
