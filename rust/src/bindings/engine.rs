@@ -43,13 +43,30 @@ fn moves(lists: Moves) -> Vec<Vec<Move>> {
         .collect()
 }
 
+/// Work below this size (automaton states, times the system's dimension squared for the Stein
+/// solves) takes well under a millisecond: it runs on the calling thread with the GIL released,
+/// because the watcher thread that lets Ctrl-C through costs more than the work itself (about
+/// 80 us a call, measured on the paper's scenario).
+const SMALL: u128 = 20_000;
+
 fn run<T: Send>(
     py: Python<'_>,
+    size: u128,
     work: impl FnOnce(&AtomicBool) -> crate::Result<T> + Send,
 ) -> PyResult<T> {
     let cancel = AtomicBool::new(false);
+    if size <= SMALL {
+        return py.detach(|| work(&cancel)).map_err(Into::into);
+    }
     let flag = &cancel;
     run_interruptible(py, &cancel, || Ok(()), move || work(flag))
+}
+
+impl PyEngine {
+    /// The size of a solve on this automaton for a system of dimension `n`.
+    fn work(&self, n: usize) -> u128 {
+        self.inner.n_states() as u128 * (n as u128).pow(2)
+    }
 }
 
 #[pymethods]
@@ -104,7 +121,12 @@ impl PyEngine {
             }
             _ => Attacker::None,
         };
-        let inner = run(py, |_| {
+        let bound = crate::engine::product::size_bound(
+            channel.n_states(),
+            &schedule,
+            usize::try_from(attacker.size_bound()).unwrap_or(usize::MAX),
+        );
+        let inner = run(py, bound, |_| {
             Engine::new(&channel, &schedule, &attacker, max_states)
         })?;
         Ok(PyEngine { inner })
@@ -117,20 +139,24 @@ impl PyEngine {
 
     fn cost(&self, py: Python<'_>, system: &Bound<'_, PySystem>) -> PyResult<f64> {
         let sys = &system.get().inner;
-        run(py, |c| self.inner.cost_cancellable(sys, Some(c)))
+        run(py, self.work(sys.n()), |c| {
+            self.inner.cost_cancellable(sys, Some(c))
+        })
     }
 
     fn stability_index(&self, py: Python<'_>, system: &Bound<'_, PySystem>) -> PyResult<f64> {
         let sys = &system.get().inner;
-        run(py, |c| self.inner.stability_index_cancellable(sys, Some(c)))
+        run(py, self.work(sys.n()), |c| {
+            self.inner.stability_index_cancellable(sys, Some(c))
+        })
     }
 
     fn high_power_rate(&self, py: Python<'_>) -> PyResult<f64> {
-        run(py, |_| self.inner.high_power_rate())
+        run(py, self.work(1), |_| self.inner.high_power_rate())
     }
 
     fn flag_rates(&self, py: Python<'_>) -> PyResult<(f64, f64, f64)> {
-        let r = run(py, |_| self.inner.flag_rates())?;
+        let r = run(py, self.work(1), |_| self.inner.flag_rates())?;
         Ok((r.sent, r.delivered, r.forged))
     }
 
@@ -139,7 +165,7 @@ impl PyEngine {
         py: Python<'py>,
         n: usize,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        Ok(run(py, |_| self.inner.holding_time_law(n))?.into_pyarray(py))
+        Ok(run(py, self.work(1), |_| self.inner.holding_time_law(n))?.into_pyarray(py))
     }
 
     #[allow(clippy::type_complexity)]
@@ -150,7 +176,7 @@ impl PyEngine {
         horizon: usize,
     ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<f64>>)> {
         let sys = &system.get().inner;
-        let (tr, j) = run(py, |c| {
+        let (tr, j) = run(py, self.work(sys.n()) * horizon as u128, |c| {
             self.inner.cost_curve_cancellable(sys, horizon, Some(c))
         })?;
         Ok((tr.into_pyarray(py), j.into_pyarray(py)))

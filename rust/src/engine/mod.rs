@@ -97,7 +97,7 @@ impl Attacker {
     }
 
     /// An upper bound on the compiled automaton's states, known before compiling it.
-    fn size_bound(&self) -> u128 {
+    pub(crate) fn size_bound(&self) -> u128 {
         fn of(a: &Attack) -> u128 {
             match a {
                 Attack::Periodic { t, .. } => u128::from(*t),
