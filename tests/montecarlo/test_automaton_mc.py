@@ -4,6 +4,7 @@ of the exact engine (tests/engine/reference_engine.py): its exact finite-horizon
 import os
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import numpy as np
@@ -263,3 +264,29 @@ def test_the_binding_returns_the_simulate_dict():
     keys = {"mean_trace", "j_k", "j", "stderr", "high_power_rate", "flags_sent", "flags_blocked"}
     assert keys | {"flags_forged", "steps", "delivered_per_run"} == set(out)
     assert out["mean_trace"].shape == (10,) and out["delivered_per_run"].shape == (10,)
+
+
+def test_progress_and_cancel_on_the_automaton_kernel(monkeypatch):
+    """The automaton kernel reports progress through the same callback as today's kernels, and an
+    error raised there cancels a run of hours within a second or two."""
+    import fakeack.montecarlo.protocol as mc
+
+    seen = []
+
+    class Record(mc.Progress):
+        def __call__(self, done):
+            seen.append(done)
+
+    monkeypatch.setattr(mc, "Progress", Record)
+    fa.simulate(S, GE, fa.OnlineDesign(2), 1000, 20_000, seed=1, attack=ON_OFF)
+    assert seen and seen[-1] == 20_000 and seen == sorted(seen)
+
+    class Boom(mc.Progress):
+        def __call__(self, done):
+            raise RuntimeError("stop")
+
+    monkeypatch.setattr(mc, "Progress", Boom)
+    t0 = time.monotonic()
+    with pytest.raises(RuntimeError, match="stop"):
+        fa.simulate(S, GE, fa.OnlineDesign(2), 10_000, 10**8, seed=1, attack=ON_OFF)
+    assert time.monotonic() - t0 < 2.0
