@@ -17,6 +17,9 @@
 //! * `montecarlo/..`: `montecarlo::simulate`, covariance and state modes, paper's system, online
 //!   z0 = 2 under the attack "first 1 of every 5", and covariance mode under independent blocking
 //!   (β = 0.2) and forged flags (γ = 0.05); throughput in simulated steps (runs × horizon);
+//! * `automaton/..`: `montecarlo::automaton::simulate`, the per-run Monte Carlo of an attacker
+//!   automaton, on the paper's example (λ = 0.5, z0 = 2, μ = 1) and on a Gilbert-Elliott channel,
+//!   under a two-state on/off attacker; throughput in simulated steps;
 //! * `game/..`: `LinearSystem::simulate_game`, the closed loop with the sensor's count test in it
 //!   (bounds at about 2.6 standard deviations of the attack-free count of a 1000-step window, two
 //!   offline windows after any alarm; offline schedule 1/7), under the attack "first 1 of every
@@ -304,6 +307,66 @@ fn bench_montecarlo(c: &mut Criterion) {
     g.finish();
 }
 
+fn bench_automaton(c: &mut Criterion) {
+    use fakeack::montecarlo::automaton::{
+        self, Attacker, AutomatonConfig, MarkovChannel, Sensor, Transition,
+    };
+    let sys = paper_system();
+    let mut g = c.benchmark_group("automaton");
+    g.sample_size(10)
+        .warm_up_time(Duration::from_millis(500))
+        .measurement_time(Duration::from_secs(4))
+        .sampling_mode(SamplingMode::Flat);
+    let t = |p, deliver, next| Transition { p, deliver, next };
+    // Off: let flag-ACKs through, turn on at one with probability 1/2; on: block them, turn off
+    // on a quiet step with probability 0.2.
+    let on_off = Attacker {
+        flag: vec![
+            vec![t(0.5, true, 0), t(0.5, false, 1)],
+            vec![t(1.0, false, 1)],
+        ],
+        quiet: vec![
+            vec![t(1.0, false, 0)],
+            vec![t(0.8, false, 1), t(0.2, false, 0)],
+        ],
+        start: 0,
+    };
+    let gilbert_elliott = MarkovChannel {
+        p: vec![vec![0.9, 0.1], vec![0.3, 0.7]],
+        low: vec![0.9, 0.2],
+        high: vec![1.0, 1.0],
+    };
+    for (name, channel) in [
+        ("paper_on_off", MarkovChannel::bernoulli(LAM)),
+        ("gilbert_elliott_on_off", gilbert_elliott),
+    ] {
+        let (runs, horizon) = (100_000u64, 1_000usize);
+        let cfg = AutomatonConfig {
+            channel,
+            sensor: Sensor::Online { z0: 2, mu: 1.0 },
+            attacker: Some(on_off.clone()),
+            horizon,
+            runs,
+            seed: 1,
+            record_runs: false,
+        };
+        g.throughput(Throughput::Elements(runs * horizon as u64));
+        g.bench_with_input(
+            BenchmarkId::new(name, format!("{runs}x{horizon}")),
+            &cfg,
+            |b, cfg| {
+                b.iter(|| {
+                    let out =
+                        automaton::simulate(&sys, cfg, &AtomicBool::new(false), &AtomicU64::new(0))
+                            .unwrap();
+                    black_box(out.j)
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
 fn bench_game(c: &mut Criterion) {
     let sys = paper_system();
     let mut g = c.benchmark_group("game");
@@ -413,6 +476,7 @@ criterion_group!(
     bench_sweep,
     bench_random_sweep,
     bench_montecarlo,
+    bench_automaton,
     bench_game,
     bench_engine
 );

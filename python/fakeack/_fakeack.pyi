@@ -26,6 +26,7 @@ __all__ = [
     "offline_schedule",
     "raise_core_error",
     "simulate",
+    "simulate_automaton",
     "simulate_game",
     "stationary_gth",
     "stationary_structured",
@@ -160,6 +161,23 @@ def simulate(
     seed: int,
     progress: Callable[[int], object],
     record_runs: bool,
+) -> dict[str, Any]: ...
+def simulate_automaton(
+    system: LinearSystem,
+    P: list[list[float]],
+    low: list[float],
+    high: list[float],
+    z0: int,
+    mu: float,
+    offline: list[bool] | None,
+    flag: list[list[tuple[float, bool, int]]],
+    quiet: list[list[tuple[float, bool, int]]],
+    start: int,
+    horizon: int,
+    runs: int,
+    seed: int,
+    progress: Callable[[int], object],
+    record_runs: bool = False,
 ) -> dict[str, Any]: ...
 def raise_core_error(kind: str) -> None: ...
 def grid_cells(

@@ -28,13 +28,13 @@ def test_min_gap_validation_names_it(gap, exc):
 
 
 def test_today_routes_refuse_min_gap(paper):
+    # fa.simulate takes min_gap > 1 on its automaton kernel (tests/montecarlo/test_automaton_mc.py).
     att = fa.FlagInjection(0.1, min_gap=3)
     calls = [
         lambda: fa.j_attack(paper, 0.5, 2, attack=att),
         lambda: fa.flag_rates(0.5, 2, att),
         lambda: fa.high_power_rate(0.5, 2, att),
         lambda: fa.expected_trace_curve(paper, 0.5, fa.OnlineDesign(2), 10, attack=att),
-        lambda: fa.simulate(paper, 0.5, fa.OnlineDesign(2), horizon=10, runs=10, attack=att),
         lambda: fa.flag_interval_law(0.5, 2, att),
     ]
     for call in calls:

@@ -138,3 +138,25 @@ def test_gilbert_elliott_validation_names_the_argument(kwargs, exc, arg):
 def test_bernoulli_validation_names_lam(lam, exc):
     with pytest.raises(exc, match=names("lam")):
         fa.BernoulliChannel(lam)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_closed_classes_by_dense_closure_match_the_graph_algorithm(seed):
+    """Small channels take a dense transitive closure; it finds the same closed classes as
+    scipy's strongly connected components (the route of larger channels)."""
+    from scipy.sparse import csr_array
+    from scipy.sparse.csgraph import connected_components
+
+    from fakeack.model.channels import closed_classes
+
+    rng = np.random.default_rng(seed)
+    for _ in range(300):
+        n = int(rng.integers(1, 14))
+        P = rng.random((n, n)) * (rng.random((n, n)) < rng.uniform(0.05, 0.6))
+        g = csr_array((P > 0).astype(float))
+        n_comp, label = connected_components(g, directed=True, connection="strong")
+        rows, cols = g.nonzero()
+        leaves = np.zeros(n_comp, dtype=bool)
+        leaves[label[rows][label[rows] != label[cols]]] = True
+        expected = sorted(tuple(np.flatnonzero(label == c)) for c in range(n_comp) if not leaves[c])
+        assert sorted(tuple(c) for c in closed_classes(P)) == expected

@@ -70,5 +70,4 @@ def test_ratio_routes_refuse_a_pattern_schedule(paper):
     s = fa.OfflineSchedule(pattern="100")
     with pytest.raises(ValueError, match="fakeack.Scenario"):
         fa.expected_trace_curve(paper, 0.5, s, 10)
-    with pytest.raises(ValueError, match="fakeack.Scenario"):
-        fa.simulate(paper, 0.5, s, horizon=10, runs=10)
+    # fa.simulate takes a pattern on its automaton kernel (tests/montecarlo/test_automaton_mc.py).

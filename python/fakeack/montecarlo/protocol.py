@@ -8,10 +8,12 @@ from .. import _fakeack
 from .._internal.progress import Progress
 from .._internal.types import FloatArray, IntArray
 from .._internal.validate import MODES, PROTOCOLS, as_int, as_probability
+from ..attacks.automata import AttackerAutomaton, MimicryAttack
 from ..attacks.kinds import AttackLike, core_attack
+from ..model.channels import Channel, ChannelLike
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
-from .curves import _schedule_and_attack
+from . import _automaton
 
 __all__ = [
     "SimulationResult",
@@ -51,7 +53,12 @@ class SimulationResult:
     flags_forged: float = 0.0
     """Flag-ACKs forged by the attacker per step (:class:`fakeack.FlagInjection`; Type B: a forged
     packet, Type A: an ACK bit flipped to 1). Flag-ACKs reaching the sensor per step:
-    ``flags_sent - flags_blocked + flags_forged``."""
+    ``flags_sent - flags_blocked + flags_forged``. Under an attacker automaton: the flag-ACKs it
+    delivered on steps without a genuine one (and ``flags_blocked`` the genuine ones it did not
+    deliver)."""
+    channel: Channel | None = None
+    """The channel simulated: :func:`simulate` sets it, a float ``lam`` giving
+    ``BernoulliChannel(lam)``."""
 
     def __str__(self) -> str:
         return (
@@ -67,6 +74,7 @@ class SimulationResult:
             [
                 ("J (time average over the horizon)", f"{self.j:.6f} ± {self.stderr:.6f}"),
                 ("runs × steps", f"{self.runs} × {self.horizon}"),
+                ("channel", "–" if self.channel is None else repr(self.channel)),
                 ("schedule", self.schedule or "–"),
                 ("attack", self.attack),
                 ("mode, protocol", f"{self.mode}, {self.protocol}"),
@@ -81,35 +89,47 @@ class SimulationResult:
 
 def simulate(
     system: LinearSystem,
-    lam: float,
-    sched: OfflineSchedule | OnlineDesign,
+    channel: ChannelLike | None = None,
+    sched: OfflineSchedule | OnlineDesign | None = None,
     horizon: int = 1000,
     runs: int = 100_000,
     seed: int = 1,
-    attack: AttackLike = None,
+    attack: AttackLike | MimicryAttack | AttackerAutomaton = None,
     mode: str = "covariance",
     protocol: str = "B",
     progress: bool | None = None,
     record_runs: bool = False,
+    *,
+    lam: float | None = None,
 ) -> SimulationResult:
     r"""Monte Carlo of the real protocol: sensor, lossy channel, event detector, attacker.
 
     Simulates the mechanisms, not the Markov chain, so it independently checks every analytic
-    formula. Each step the sensor picks Δ (always arrives) or δ (arrives with probability
-    :math:`\lambda`); the remote estimator follows eq. (7)-(8); the event detector keeps the ACK
-    memory (z0 bits with probability μ, else z0+1; reset after each flag-ACK); the attacker blocks
-    flag-ACKs per its mask (:class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`) or
-    independently with probability β (:class:`fakeack.RandomBlocking`), and a
-    :class:`fakeack.FlagInjection` forges a flag-ACK with probability γ on each step on which the
-    detector sends none, after which the sensor uses Δ. Runs start from the paper's initial
-    condition.
+    formula and the exact engine (:class:`fakeack.Scenario`). Each step the sensor picks Δ or δ;
+    in the channel's current state the packet arrives with the probability of that power (the
+    paper's channel: always at Δ, with probability :math:`\lambda` at δ), and the channel then
+    moves to its next state; the remote estimator follows eq. (7)-(8); the event detector keeps
+    the ACK memory (z0 bits with probability μ, else z0+1; reset after each flag-ACK); the
+    attacker blocks flag-ACKs per its mask (:class:`fakeack.PeriodicBlocking`,
+    :class:`fakeack.MaskBlocking`) or independently with probability β
+    (:class:`fakeack.RandomBlocking`), a :class:`fakeack.FlagInjection` forges a flag-ACK with
+    probability γ on each step on which the detector sends none (at least ``min_gap`` steps after
+    the last one the sensor received), after which the sensor uses Δ; a
+    :class:`fakeack.MimicryAttack` delivers the flag-ACKs of a virtual attack-free system, and an
+    :class:`fakeack.AttackerAutomaton` whatever its table says. Runs start from the paper's
+    initial condition (high power at k = 1, memory all ones, the attacker at its start, the first
+    channel state drawn from the stationary law).
 
     Parameters
     ----------
     system : LinearSystem
-    lam : float
-        Arrival probability at low power.
+    channel : Channel or float
+        :class:`fakeack.BernoulliChannel`, :class:`fakeack.MarkovChannel`,
+        :class:`fakeack.GilbertElliott`, or a float: the paper's channel of that low-power arrival
+        probability :math:`\lambda`.
     sched : OfflineSchedule or OnlineSchedule
+        The online design ``(z0, mu)``, or an offline schedule by its ratio or by any pattern
+        (``OfflineSchedule(pattern="0100")``: first symbol = step 1).
     horizon : int, optional
         Steps per run (default 1000).
     runs : int, optional
@@ -119,13 +139,17 @@ def simulate(
     attack : None, attack, (r, t) or str, optional
         Fake-ACK attack (online schedules only): :class:`fakeack.PeriodicBlocking`,
         :class:`fakeack.MaskBlocking`, :class:`fakeack.RandomBlocking`,
-        :class:`fakeack.FlagInjection`, or any spelling ``fakeack.attacks.as_attack`` reads
-        (``"1/5"``, ``"random:0.3"``, ``"inject:0.1+random:0.3"``).
+        :class:`fakeack.FlagInjection` (any ``min_gap``), :class:`fakeack.MimicryAttack` (its
+        ``None`` channel and design are this simulation's), :class:`fakeack.AttackerAutomaton`,
+        or any spelling ``fakeack.attacks.as_attack`` reads (``"1/5"``, ``"random:0.3"``,
+        ``"inject:0.1+random:0.3"``).
     mode : {"covariance", "state"}
         ``"covariance"`` tracks the holding time and averages :math:`\mathrm{Tr}\,P_k`;
         ``"state"`` simulates Gaussian noise, the sensor's steady-state Kalman filter and the
         remote estimator, and averages the squared estimation error (the error dynamics are
-        simulated directly, so unstable A never overflows).
+        simulated directly, so unstable A never overflows). State mode is for the paper's channel,
+        the offline schedule by its ratio and the built-in attacks with ``min_gap = 1`` only (see
+        Notes).
     protocol : {"B", "A"}
         Type B: a flag packet that the attacker drops (or forges); Type A: a bit every step that
         the attacker flips (1 to 0 to block, 0 to 1 to forge). The statistics are identical
@@ -136,28 +160,57 @@ def simulate(
         Also return each run's count of flag-ACKs delivered to the sensor, genuine or forged
         (``delivered_per_run``; 8 bytes per run, the one output whose memory grows with
         ``runs``), as used by :func:`fakeack.detection_rates`.
+    lam : float, keyword-only, optional
+        The former name of ``channel`` (a float): ``simulate(system, lam=0.5, sched=...)`` still
+        works. Giving both is a TypeError.
 
     Returns
     -------
     SimulationResult
+        With ``channel`` the channel simulated.
+
+    Raises
+    ------
+    TypeError
+        For a missing or doubly given channel, or an argument of the wrong type (naming it).
+    ValueError
+        For a value out of its domain (naming it), an attack on an offline schedule, or
+        ``mode="state"`` where only the automaton kernel simulates.
 
     Notes
     -----
     Runs in parallel on all cores with the GIL released; Ctrl-C raises ``KeyboardInterrupt``
     within a fraction of a second.
 
-    Covariance mode simulates 256 runs at once as the bit lanes of four machine words whenever the
-    holding time is bounded by 32 (and the memory under attack too) and the attack mask has at
-    most four runs of ones, and under random blocking or forging also when few runs pass 32 steps
-    without an arrival (those are followed one by one); other plans use a lane-parallel kernel,
-    as does state mode. Both are
-    exact simulations of the same protocol, but they consume the random streams differently: for
-    one seed, a covariance run and a state run of such a plan are different (equally distributed)
-    samples, not paired ones.
+    Two families of kernels. On the paper's channel (one state, high power always arrives) with
+    an online design or ``OfflineSchedule(ratio)`` and a built-in attack with ``min_gap = 1``,
+    the specialised kernels run: covariance mode simulates 256 runs at once as the bit lanes of
+    four machine words whenever the holding time is bounded by 32 (and the memory under attack
+    too) and the attack mask has at most four runs of ones, and under random blocking or forging
+    also when few runs pass 32 steps without an arrival (those are followed one by one); other
+    plans use a lane-parallel kernel, as does state mode. Both are exact simulations of the same
+    protocol, but they consume the random streams differently: for one seed, a covariance run
+    and a state run of such a plan are different (equally distributed) samples, not paired
+    ones.
+
+    Everything else (another channel, an offline pattern, mimicry, an attacker automaton, an
+    injection with ``min_gap > 1``) runs on a plain per-run Monte Carlo of the attack written as
+    an automaton (``fakeack.attacks.as_automaton``), in covariance mode only; it steps the
+    channel, the detector and the attacker's table, never the exact engine's product chain.
+
+    Examples
+    --------
+    >>> import fakeack as fa
+    >>> s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+    >>> ge = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
+    >>> res = fa.simulate(s, ge, fa.OnlineDesign(2), 200, 2000, seed=1, progress=False)
+    >>> res.channel == ge
+    True
     """
     core = compiled(system)
-    lam = as_probability("lam", lam)
-    sched, att = _schedule_and_attack(sched, attack)
+    ch, channel_name = _automaton.channel_argument(channel, lam)
+    sched = _automaton.schedule_argument(sched)
+    att = _automaton.attack_argument(attack, sched)
     horizon = as_int("horizon", horizon, minimum=1)
     runs = as_int("runs", runs, minimum=1)
     seed = as_int("seed", seed, minimum=0)
@@ -167,30 +220,42 @@ def simulate(
         raise ValueError(f"mode must be 'covariance' or 'state', got {mode!r}")
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol must be 'A' or 'B', got {protocol!r}")
-    if isinstance(sched, OfflineSchedule):
-        assert sched.ratio is not None  # _schedule_and_attack refuses a schedule given by its pattern
-        kind, p, q, z0, mu = "offline", sched.ratio.numerator, sched.ratio.denominator, 1, 1.0
-    else:
-        kind, p, q, z0, mu = "online", 1, 2, sched.z0, sched.mu
+    automaton = _automaton.needs_automaton(ch, sched, att)
+    if automaton and mode != "covariance":
+        raise ValueError(
+            f"mode must be 'covariance' for {ch!r}, {sched!r} and attack {att!r}: only the paper's "
+            "channel with OfflineSchedule(ratio) or an online design and a built-in attack "
+            f"(min_gap = 1) has state mode, got {mode!r}"
+        )
     bar = Progress(runs, progress)
     try:
-        out = _fakeack.simulate(
-            core,
-            lam,
-            kind,
-            p,
-            q,
-            z0,
-            mu,
-            core_attack(att),
-            mode,
-            protocol,
-            horizon,
-            runs,
-            seed,
-            bar,
-            bool(record_runs),
-        )
+        if automaton:
+            out = _automaton.run_automaton(core, ch, sched, att, horizon, runs, seed, bar, bool(record_runs))
+        else:
+            assert not isinstance(att, (MimicryAttack, AttackerAutomaton))  # needs_automaton
+            lam_value = as_probability(channel_name, float(ch.low[0]))
+            if isinstance(sched, OfflineSchedule):
+                assert sched.ratio is not None  # a pattern needs the automaton kernel
+                kind, p, q, z0, mu = "offline", sched.ratio.numerator, sched.ratio.denominator, 1, 1.0
+            else:
+                kind, p, q, z0, mu = "online", 1, 2, sched.z0, sched.mu
+            out = _fakeack.simulate(
+                core,
+                lam_value,
+                kind,
+                p,
+                q,
+                z0,
+                mu,
+                core_attack(att),
+                mode,
+                protocol,
+                horizon,
+                runs,
+                seed,
+                bar,
+                bool(record_runs),
+            )
     finally:
         bar.close()
     return SimulationResult(
@@ -210,4 +275,5 @@ def simulate(
         schedule=str(sched),
         attack="none" if att is None else str(att),
         delivered_per_run=out["delivered_per_run"] if record_runs else None,
+        channel=ch,
     )

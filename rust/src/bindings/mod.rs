@@ -19,6 +19,7 @@ use crate::error::Error;
 use crate::OnlineDesign;
 
 mod attacks;
+mod automaton;
 mod detection;
 mod engine;
 mod game;
@@ -101,6 +102,7 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(attacks::stationary_structured, m)?)?;
     m.add_function(wrap_pyfunction!(attacks::general_attack_chain, m)?)?;
     m.add_function(wrap_pyfunction!(montecarlo::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(automaton::simulate_automaton, m)?)?;
     m.add_function(wrap_pyfunction!(raise_core_error, m)?)?;
     m.add_function(wrap_pyfunction!(studies::grid_cells, m)?)?;
     m.add_function(wrap_pyfunction!(studies::grid_designs, m)?)?;

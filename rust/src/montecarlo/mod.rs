@@ -162,6 +162,7 @@ macro_rules! by_flags {
     }};
 }
 
+pub mod automaton;
 mod bitslice;
 mod config;
 mod cpu;

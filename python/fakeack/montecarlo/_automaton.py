@@ -1,0 +1,117 @@
+"""The arguments of :func:`fakeack.simulate` and its route to the automaton Monte Carlo.
+
+Today's kernels (``_fakeack.simulate``) take the paper's channel, ``OfflineSchedule(ratio)`` or
+an online design, and the built-in attacks; everything else (a Markov channel, an offline
+pattern, mimicry, an attacker automaton, an injection with ``min_gap > 1``) goes to the plain
+per-run Monte Carlo of any automaton (``_fakeack.simulate_automaton``).
+"""
+
+from __future__ import annotations
+
+from typing import Any, cast
+
+from .. import _fakeack
+from ..attacks.automata import AttackerAutomaton, MimicryAttack, as_automaton
+from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack
+from ..model.channels import Channel, as_channel
+from ..model.schedules import OfflineSchedule, OnlineDesign
+
+#: Longest offline period the automaton route passes to the core (as fakeack.Scenario).
+MAX_OFFLINE_PERIOD = 10_000_000
+
+SimAttack = Attack | MimicryAttack | AttackerAutomaton
+
+
+def channel_argument(channel: object, lam: object) -> tuple[Channel, str]:
+    """The channel of ``simulate(system, channel)`` or ``simulate(system, lam=...)``, and the name
+    its errors use. Both or neither is a TypeError."""
+    if lam is not None:
+        if channel is not None:
+            raise TypeError("give either channel or lam (its old name), not both")
+        return as_channel(lam, "lam"), "lam"
+    if channel is None:
+        raise TypeError("simulate() missing the channel: a fakeack channel or a float lam")
+    return as_channel(channel, "channel"), "channel"
+
+
+def schedule_argument(sched: object) -> OfflineSchedule | OnlineDesign:
+    """The schedule, checked for its type."""
+    if sched is None:
+        raise TypeError("simulate() missing the schedule sched")
+    if not isinstance(sched, (OfflineSchedule, OnlineDesign)):
+        raise TypeError(
+            f"sched must be a fakeack.OfflineSchedule or fakeack.OnlineSchedule, got {type(sched).__name__}"
+        )
+    return sched
+
+
+def attack_argument(attack: object, sched: OfflineSchedule | OnlineDesign) -> SimAttack | None:
+    """The attack as an object (``None``: no attack); an offline schedule takes none."""
+    att: SimAttack | None
+    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
+        att = attack
+    else:
+        att = as_attack(cast("AttackLike", attack))  # as_attack validates any object
+    if isinstance(sched, OfflineSchedule) and att is not None:
+        raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
+    return att
+
+
+def is_paper_channel(ch: Channel) -> bool:
+    """Whether ``ch`` is the paper's channel (one state, high power always arrives)."""
+    return ch.n_states == 1 and float(ch.high[0]) == 1.0
+
+
+def needs_automaton(ch: Channel, sched: OfflineSchedule | OnlineDesign, att: SimAttack | None) -> bool:
+    """Whether only the automaton Monte Carlo simulates this: another channel than the paper's,
+    an offline pattern, or an attack today's kernels do not take."""
+    if not is_paper_channel(ch):
+        return True
+    if isinstance(sched, OfflineSchedule) and sched.ratio is None:
+        return True
+    if isinstance(att, (MimicryAttack, AttackerAutomaton)):
+        return True
+    return isinstance(att, FlagInjection) and att.min_gap > 1
+
+
+def run_automaton(
+    core: _fakeack.LinearSystem,
+    ch: Channel,
+    sched: OfflineSchedule | OnlineDesign,
+    att: SimAttack | None,
+    horizon: int,
+    runs: int,
+    seed: int,
+    progress: Any,
+    record_runs: bool,
+) -> dict[str, Any]:
+    """``_fakeack.simulate_automaton`` on the converted arguments."""
+    offline: list[bool] | None = None
+    if isinstance(sched, OfflineSchedule):
+        pattern = sched.pattern
+        if len(pattern) > MAX_OFFLINE_PERIOD:
+            raise ValueError(f"sched: an offline period of {len(pattern)} steps exceeds {MAX_OFFLINE_PERIOD}")
+        offline = [bool(x) for x in pattern]
+        z0, mu = 1, 1.0
+        auto = as_automaton(None)
+    else:
+        z0, mu = sched.z0, sched.mu
+        # Mimicry without its own channel or design runs this simulation's.
+        auto = as_automaton(att, channel=ch, design=sched)
+    return _fakeack.simulate_automaton(
+        core,
+        ch.P.tolist(),
+        ch.low.tolist(),
+        ch.high.tolist(),
+        z0,
+        mu,
+        offline,
+        [list(ev) for ev in auto.flag],
+        [list(ev) for ev in auto.quiet],
+        auto.start,
+        horizon,
+        runs,
+        seed,
+        progress,
+        record_runs,
+    )
