@@ -147,8 +147,6 @@ def test_closed_classes_by_dense_closure_match_the_graph_algorithm(seed):
     from scipy.sparse import csr_array
     from scipy.sparse.csgraph import connected_components
 
-    from fakeack.model.channels import closed_classes
-
     rng = np.random.default_rng(seed)
     for _ in range(300):
         n = int(rng.integers(1, 14))
