@@ -60,7 +60,8 @@ numpydoc_validation_checks: set[str] = set()
 # Sections of the API page, by the subpackage a name is defined in; a subpackage not listed here gets
 # a section of its own, titled by its name.
 API_SECTIONS = {
-    "fakeack.model": "The system and the schedules without attack",
+    "fakeack.model": "The system, the channels and the schedules",
+    "fakeack.engine": "The exact engine",
     "fakeack.attacks": "Attacks: the chain, costs, thresholds and the decision",
     "fakeack.montecarlo": "Monte Carlo and exact finite-horizon curves",
     "fakeack.detection": "Detecting an attack",
