@@ -1,4 +1,5 @@
-"""Schedules as objects, Monte Carlo of the real protocol, and exact finite-horizon curves."""
+"""The progress bar of long computations: a tqdm bar that appears only if a run lasts longer than a
+second and only where it can be seen."""
 
 from __future__ import annotations
 

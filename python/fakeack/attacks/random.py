@@ -1,5 +1,5 @@
-"""Attacks beyond the paper's: independent blocking, forged flag-ACKs, and what they cost the
-sensor in estimation error and in energy."""
+"""Independent blocking and rate matching: the threshold against random blocking, its sweep over
+beta, and the forger who keeps the flag count at the attack-free rate."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""Attacks beyond the paper's: independent blocking, forged flag-ACKs, and what they cost the
-sensor in estimation error and in energy."""
+"""The high-power rate and the energy per step under any attack: what the flag-ACKs that reach the
+sensor, genuine or forged, cost it in energy."""
 
 from __future__ import annotations
 

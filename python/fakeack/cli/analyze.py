@@ -1,4 +1,4 @@
-"""``fakeack analyze``: the study of :mod:`fakeack.study` for the system of a TOML config."""
+"""``fakeack analyze``: the study of :mod:`fakeack.studies.report` for the system of a TOML config."""
 
 from __future__ import annotations
 

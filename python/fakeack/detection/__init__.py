@@ -1,5 +1,17 @@
-"""Detecting the attacker from the flag-ACKs the sensor receives: flag rates and gap laws, the count
-and interval tests, and their detection probability per window."""
+"""The sensor's two tests for a fake-ACK attacker and their detection probability per window.
+
+* The **count test** (:func:`fakeack.detect_attack`) compares how many flag-ACKs reached the sensor
+  in a window of n steps with the attack-free count (renewal central limit theorem).
+* The **interval test** (:func:`detect_intervals`) also looks at *when* they came: Pearson's
+  goodness-of-fit statistic over bins of the exact attack-free gap law.
+
+:func:`detection_probability` gives the probability that either test raises an alarm in one window
+under any attack (``None``: the false-alarm rate), from the exact laws of
+``fakeack.detection.intervals`` and the stated normal approximations.
+
+(Over 450 lines: both tests and their power share the gap-law bins and moments; the
+detection_probability part is the next to move to a module of its own.)
+"""
 
 from .count import ALTERNATIVES, Detection, count_alarm_bounds, detect_attack, harmful_count_bound
 from .flags import FlagRates, delivered_flag_rate, estimate_beta, flag_interval_moments, flag_rates

@@ -1,17 +1,5 @@
-"""The sensor's two tests for a fake-ACK attacker and their detection probability per window.
-
-* The **count test** (:func:`fakeack.detect_attack`) compares how many flag-ACKs reached the sensor
-  in a window of n steps with the attack-free count (renewal central limit theorem).
-* The **interval test** (:func:`detect_intervals`) also looks at *when* they came: Pearson's
-  goodness-of-fit statistic over bins of the exact attack-free gap law.
-
-:func:`detection_probability` gives the probability that either test raises an alarm in one window
-under any attack (``None``: the false-alarm rate), from the exact laws of
-``fakeack.intervals`` and the stated normal approximations.
-
-(Over 450 lines: both tests and their power share the gap-law bins and moments; the
-detection_probability part is the next to move to a module of its own.)
-"""
+"""The count test: how many flag-ACKs reached the sensor in a window, against the attack-free
+renewal law of the count, with its alarm bounds and its one-shot decision (:func:`detect_attack`)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Detecting the attacker from the flag-ACKs the sensor receives (the paper's Remark 4.2)."""
+"""The flag-ACKs the sensor receives (the paper's Remark 4.2): their rates under any attack, the
+moments of the gaps between them, and the blocked fraction estimated from a count."""
 
 from __future__ import annotations
 

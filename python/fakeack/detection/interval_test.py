@@ -1,17 +1,5 @@
-"""The sensor's two tests for a fake-ACK attacker and their detection probability per window.
-
-* The **count test** (:func:`fakeack.detect_attack`) compares how many flag-ACKs reached the sensor
-  in a window of n steps with the attack-free count (renewal central limit theorem).
-* The **interval test** (:func:`detect_intervals`) also looks at *when* they came: Pearson's
-  goodness-of-fit statistic over bins of the exact attack-free gap law.
-
-:func:`detection_probability` gives the probability that either test raises an alarm in one window
-under any attack (``None``: the false-alarm rate), from the exact laws of
-``fakeack.intervals`` and the stated normal approximations.
-
-(Over 450 lines: both tests and their power share the gap-law bins and moments; the
-detection_probability part is the next to move to a module of its own.)
-"""
+"""The interval test: Pearson's X² of the gaps between received flag-ACKs in a window, binned against
+their exact attack-free law, and its one-shot decision (:func:`detect_intervals`)."""
 
 from __future__ import annotations
 
@@ -139,7 +127,7 @@ def interval_test(lam: float, z0: int, n_steps: int, alpha: float = 0.01, mu: fl
     **Its law.** The bin counts over a fixed time are not multinomial (the number of gaps is
     random, and the gaps are serially dependent under a periodic attack), so :math:`X^2` is not
     :math:`\chi^2`. By the Markov renewal central limit theorem the counts are asymptotically
-    normal with the exact mean and covariance of ``fakeack.intervals``, so
+    normal with the exact mean and covariance of ``fakeack.detection.intervals``, so
     :math:`X^2 \approx \sum_j \lambda_j (Z_j + b_j)^2` (a generalised chi-square) with
     :math:`\lambda_j` the eigenvalues of :math:`D^{-1/2} \Sigma D^{-1/2}` (D = diag(E)) and b the
     attack's mean shift in that basis; without attack b = 0 and the weights are near 1. Tails use

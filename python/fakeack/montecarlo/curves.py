@@ -1,4 +1,5 @@
-"""Schedules as objects, Monte Carlo of the real protocol, and exact finite-horizon curves."""
+"""Exact finite-horizon curves: E Tr P_k and J_k from the paper's initial condition, the curves the
+Monte Carlo of the protocol estimates."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""Schedules as objects, Monte Carlo of the real protocol, and exact finite-horizon curves."""
+"""Monte Carlo of the real protocol: sensor, lossy channel, event detector and attacker, run by the
+compiled kernels (:func:`simulate`)."""
 
 from __future__ import annotations
 

@@ -1,5 +1,5 @@
-"""The attack families side by side: periodic blocking (the paper's, in its large-period worst
-case), independent blocking and rate-matching injection, in cost and in energy."""
+"""The attack families side by side in one figure: cost and energy of periodic blocking, independent
+blocking and rate-matching injection (:func:`plot_attack_families`)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,5 @@
-"""The stealthy frontier: the most damaging attack of a family that a test sees rarely enough."""
+"""The stealthy frontiers in one figure: J against the detection probability per window, a panel per
+test (:func:`plot_frontiers`)."""
 
 from __future__ import annotations
 

@@ -1,12 +1,5 @@
-"""Parameter studies at scale: every quantity of the analysis over a grid of (system, lam, ratio[, beta]).
-
-:func:`study_grid` runs on this machine or on any ``concurrent.futures`` executor, including a
-Dask cluster's, writes an optional zarr store block by block (resumable), and returns an
-:class:`xarray.Dataset`. It needs the optional extra ``pip install "fakeack[grid]"``.
-
-(Over 450 lines: the study runner, its store and its block scheduling share the block layout;
-the store is the next part to move to a module of its own.)
-"""
+"""The dataset of a parameter study: its variables, coordinates and attributes, as an
+:class:`xarray.Dataset` (or the arrays that make one)."""
 
 from __future__ import annotations
 

@@ -1,12 +1,5 @@
-"""Parameter studies at scale: every quantity of the analysis over a grid of (system, lam, ratio[, beta]).
-
-:func:`study_grid` runs on this machine or on any ``concurrent.futures`` executor, including a
-Dask cluster's, writes an optional zarr store block by block (resumable), and returns an
-:class:`xarray.Dataset`. It needs the optional extra ``pip install "fakeack[grid]"``.
-
-(Over 450 lines: the study runner, its store and its block scheduling share the block layout;
-the store is the next part to move to a module of its own.)
-"""
+"""Parameter studies at scale: :func:`study_grid` over a grid of (system, lam, ratio[, beta]) on this
+machine or any ``concurrent.futures`` executor (a Dask cluster included), resumable from its store."""
 
 from __future__ import annotations
 
