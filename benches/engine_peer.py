@@ -51,7 +51,7 @@ def explicit_j(K0: sp.csr_array, K1: sp.csr_array, levels: int, tr: np.ndarray) 
     T = sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(N, N))
     # Balance equations pi (T - I) = 0 with the last one replaced by sum(pi) = 1 (a state's pin
     # could hit a transient state; a last dense row adds fill to that row only).
-    M = (T - sp.eye_array(N, format="csr")).T.tolil()
+    M = (T - sp.csr_array(sp.identity(N, format="csr"))).T.tolil()
     M[N - 1, :] = np.ones(N)
     b = np.zeros(N)
     b[-1] = 1.0

@@ -412,7 +412,7 @@ def explicit_law(k0, k1, levels):
     if N > MAX_STATES:
         raise RuntimeError(f"reference: {N} states")
     T = sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(N, N))
-    M = (sp.eye_array(N, format="csr") - T).T.tolil()
+    M = (sp.csr_array(sp.identity(N, format="csr")) - T).T.tolil()  # scipy 1.10 has no eye_array
     M[N - 1, :] = np.ones(N)
     b = np.zeros(N)
     b[-1] = 1.0
