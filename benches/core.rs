@@ -417,7 +417,8 @@ fn bench_game(c: &mut Criterion) {
 }
 
 /// The general exact engine: the paper's scenario with construction, a Gilbert-Elliott channel
-/// under a long blocking period (~10^4 and ~10^6 states, scalar) and n_x = 10 on ~10^3 states.
+/// under a long blocking period (5,800, ~10^4 and ~7 10^5 states, scalar) and n_x = 10 on ~10^3
+/// states.
 fn bench_engine(c: &mut Criterion) {
     let mut g = c.benchmark_group("engine");
     let sys = paper_system();
@@ -436,7 +437,7 @@ fn bench_engine(c: &mut Criterion) {
     });
     let ge = Channel::gilbert_elliott(0.1, 0.4, 0.7, 0.2, 1.0, 1.0).unwrap();
     let sched = PowerSchedule::Online(design);
-    for t in [1000u64, 125_000] {
+    for t in [1000u64, 1720, 125_000] {
         let attacker = Attacker::attack(Attack::periodic(t / 10, t).unwrap());
         let n = Engine::new(&ge, &sched, &attacker, 10_000_000)
             .unwrap()

@@ -3,10 +3,9 @@
 //! equations that give J.
 
 use faer::c64;
-use faer::sparse::linalg::solvers::SymbolicLu;
 use nalgebra::DMatrix;
 
-use crate::engine::linsolve::{Factor, Pattern, Scalar};
+use crate::engine::linsolve::{Factor, Ordering, Pattern, Scalar};
 use crate::engine::product::{Product, SparseRows};
 use crate::error::{Error, Result};
 use crate::system::LinearSystem;
@@ -33,11 +32,13 @@ pub(crate) struct ShiftedK0 {
     k0: Vec<f64>,
     /// Whether each entry is on the diagonal.
     diag: Vec<bool>,
-    symbolic: Option<SymbolicLu<usize>>,
+    symbolic: Option<Ordering>,
 }
 
 impl ShiftedK0 {
-    pub(crate) fn new(k0: &SparseRows) -> Result<Self> {
+    /// The pattern of (I - s K0)^T; `ordering` is a column order to reuse (that of I - K when
+    /// the stationary law was solved on all states), else one is computed.
+    pub(crate) fn new(k0: &SparseRows, ordering: Option<Option<Ordering>>) -> Result<Self> {
         let n = k0.n();
         let mut col_ptr = Vec::with_capacity(n + 1);
         let mut row_idx = Vec::with_capacity(k0.data.len() + n);
@@ -71,7 +72,10 @@ impl ShiftedK0 {
             col_ptr,
             row_idx,
         };
-        let symbolic = pattern.analyse()?;
+        let symbolic = match ordering {
+            Some(o) => o,
+            None => pattern.analyse()?,
+        };
         Ok(ShiftedK0 {
             pattern,
             k0: vals,
@@ -120,31 +124,58 @@ pub(crate) struct Stationary {
     pub shifted: ShiftedK0,
 }
 
-/// Every state must reach an arrival (so ρ(K0) < 1), by reverse reachability from the states
-/// with an arriving transition. `arg` names what to blame.
-pub(crate) fn check_arrivals(p: &Product, arg: &str) -> Result<()> {
-    let n = p.n();
-    let mut rev: Vec<Vec<u32>> = vec![Vec::new(); n];
-    for e in 0..n {
-        for (f, _) in p.k0.row(e) {
-            rev[f].push(e as u32);
+/// The reversed graph of the union of `parts` (their entries' patterns), in CSR form: the
+/// predecessors of f are `idx[ptr[f]..ptr[f + 1]]`.
+fn reversed(n: usize, parts: &[&SparseRows]) -> (Vec<usize>, Vec<u32>) {
+    let mut ptr = vec![0usize; n + 1];
+    for m in parts {
+        for &f in &m.indices {
+            ptr[f as usize + 1] += 1;
         }
     }
-    let mut ok = vec![false; n];
-    let mut stack: Vec<usize> = (0..n)
-        .filter(|&e| p.k1.indptr[e + 1] > p.k1.indptr[e])
-        .collect();
-    for &e in &stack {
+    for f in 0..n {
+        ptr[f + 1] += ptr[f];
+    }
+    let mut fill = ptr.clone();
+    let mut idx = vec![0u32; ptr[n]];
+    for m in parts {
+        for e in 0..n {
+            for &f in &m.indices[m.indptr[e]..m.indptr[e + 1]] {
+                idx[fill[f as usize]] = e as u32;
+                fill[f as usize] += 1;
+            }
+        }
+    }
+    (ptr, idx)
+}
+
+/// Marks every state with a path to one of `seeds` in the graph whose reversal is `rev`.
+fn reaching(rev: &(Vec<usize>, Vec<u32>), seeds: Vec<usize>) -> Vec<bool> {
+    let (ptr, idx) = rev;
+    let mut ok = vec![false; ptr.len() - 1];
+    for &e in &seeds {
         ok[e] = true;
     }
+    let mut stack = seeds;
     while let Some(f) = stack.pop() {
-        for &e in &rev[f] {
+        for &e in &idx[ptr[f]..ptr[f + 1]] {
             if !ok[e as usize] {
                 ok[e as usize] = true;
                 stack.push(e as usize);
             }
         }
     }
+    ok
+}
+
+/// Every state must reach an arrival (so ρ(K0) < 1), by reverse reachability from the states
+/// with an arriving transition. `arg` names what to blame.
+pub(crate) fn check_arrivals(p: &Product, arg: &str) -> Result<()> {
+    let n = p.n();
+    let seeds = (0..n)
+        .filter(|&e| p.k1.indptr[e + 1] > p.k1.indptr[e])
+        .collect();
+    let ok = reaching(&reversed(n, &[&p.k0]), seeds);
     if let Some(bad) = ok.iter().position(|&x| !x) {
         return Err(Error::invalid(
             arg,
@@ -156,6 +187,31 @@ pub(crate) fn check_arrivals(p: &Product, arg: &str) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// Whether K's graph is one strongly connected class: state 0 reaches every state and every
+/// state reaches state 0 (two searches, cheaper than [`closed_classes`] in the usual case).
+fn strongly_connected(p: &Product) -> bool {
+    let n = p.n();
+    let mut seen = vec![false; n];
+    let mut stack = vec![0usize];
+    seen[0] = true;
+    let mut count = 1;
+    while let Some(e) = stack.pop() {
+        for m in [&p.k0, &p.k1] {
+            for &f in &m.indices[m.indptr[e]..m.indptr[e + 1]] {
+                if !seen[f as usize] {
+                    seen[f as usize] = true;
+                    count += 1;
+                    stack.push(f as usize);
+                }
+            }
+        }
+    }
+    count == n
+        && reaching(&reversed(n, &[&p.k0, &p.k1]), vec![0])
+            .iter()
+            .all(|&x| x)
 }
 
 /// The closed classes of K's graph (members of each), by an iterative Tarjan.
@@ -239,8 +295,9 @@ fn closed_classes(p: &Product) -> Vec<Vec<usize>> {
 }
 
 /// The stationary law of K on one closed class (`members`): the balance equations with the
-/// first replaced by pi_0 = 1, solved by LU, then normalised. Returned per member.
-fn class_law(p: &Product, members: &[usize], arg: &str) -> Result<Vec<f64>> {
+/// first replaced by pi_0 = 1, solved by LU, then normalised. Returned per member, with the
+/// column ordering the LU used.
+fn class_law(p: &Product, members: &[usize], arg: &str) -> Result<(Vec<f64>, Option<Ordering>)> {
     let n = p.n();
     let m = members.len();
     let mut local = vec![u32::MAX; n];
@@ -297,7 +354,7 @@ fn class_law(p: &Product, members: &[usize], arg: &str) -> Result<Vec<f64>> {
         return Err(Error::invalid(arg, "the balance equations are singular"));
     }
     let total: f64 = x.iter().sum();
-    Ok(x.into_iter().map(|v| (v / total).max(0.0)).collect())
+    Ok((x.into_iter().map(|v| (v / total).max(0.0)).collect(), sym))
 }
 
 /// The probability that the chain started from `init` ends in each of `classes`: the mass
@@ -382,18 +439,29 @@ impl Stationary {
     /// reach an arrival ([`check_arrivals`], run when the product is built).
     pub(crate) fn new(p: &Product, arg: &str) -> Result<Self> {
         let n = p.n();
-        let classes = closed_classes(p);
+        let classes = if strongly_connected(p) {
+            vec![(0..n).collect()]
+        } else {
+            closed_classes(p)
+        };
         let weights = if classes.len() == 1 {
             vec![1.0]
         } else {
             absorption(p, &classes, arg)?
         };
         let mut pi = vec![0.0; n];
+        // The law's column order serves I - s K0 too when its class is every state (the usual
+        // case: the states are numbered as explored, so then members[i] = i).
+        let mut ordering = None;
         for (members, &wt) in classes.iter().zip(&weights) {
             if wt <= 0.0 {
                 continue;
             }
-            for (&e, x) in members.iter().zip(class_law(p, members, arg)?) {
+            let (law, order) = class_law(p, members, arg)?;
+            if members.len() == n {
+                ordering = Some(order);
+            }
+            for (&e, x) in members.iter().zip(law) {
                 pi[e] = wt * x;
             }
         }
@@ -407,7 +475,7 @@ impl Stationary {
             .zip(&pi)
             .map(|((a, b), c)| (a + b - c).abs())
             .sum();
-        let shifted = ShiftedK0::new(&p.k0)?;
+        let shifted = ShiftedK0::new(&p.k0, ordering)?;
         let lu = shifted.factor(1.0)?;
         let mut w = vec![1.0; n];
         if !lu.solve(&mut w) {

@@ -697,3 +697,34 @@ fn two_closed_classes_mix_by_the_initial_law() {
     let want = 0.3 * sys.j_online(0.5, d).unwrap() + 0.7 * sys.j_max(0.5).unwrap();
     close(e.cost(&sys).unwrap(), want, 1e-12, "absorbing attacker");
 }
+
+/// Two closed classes past the dense threshold (the stationary law and I - s K0 then get their
+/// own orderings): a coin at the first flag-ACK chooses between passing every flag from then on
+/// and the periodic blocker PeriodicBlocking(7, 40) started at that flag. Before the first flag
+/// both branches act alike, so J = 0.3 J_on + 0.7 J_attack.
+#[test]
+fn two_closed_classes_on_the_sparse_path() {
+    let sys = paper();
+    let d = OnlineDesign::new(2, 0.6).unwrap();
+    let a = Attack::periodic(7, 40).unwrap();
+    let mv = |p, deliver, next| Move { p, deliver, next };
+    // States: 0 = before the first flag, 1 = pass all, 2 + σ = the blocker's count σ.
+    let mut flag = vec![
+        vec![mv(0.3, true, 1), mv(0.7, false, 3)],
+        vec![mv(1.0, true, 1)],
+    ];
+    let mut quiet = vec![vec![mv(1.0, false, 0)], vec![mv(1.0, false, 1)]];
+    for s in 0..40usize {
+        flag.push(vec![mv(1.0, s >= 7, 2 + (s + 1) % 40)]);
+        quiet.push(vec![mv(1.0, false, 2 + s)]);
+    }
+    let e = online(
+        0.5,
+        d,
+        Attacker::Automaton(AttackerAutomaton::new(flag, quiet, 0).unwrap()),
+    );
+    assert!(e.n_states() > 2 * linsolve::DENSE_MAX, "{}", e.n_states());
+    let want = 0.3 * sys.j_online(0.5, d).unwrap() + 0.7 * sys.j_attack(0.5, d, &a).unwrap();
+    close(e.cost(&sys).unwrap(), want, 1e-11, "mixture");
+    assert!(e.stationary_residual().unwrap() < 1e-12);
+}
