@@ -25,6 +25,8 @@ __all__ = [
     "GilbertElliott",
     "ChannelLike",
     "as_channel",
+    "channel_argument",
+    "is_paper_channel",
     "ROW_SUM_TOL",
 ]
 
@@ -444,3 +446,44 @@ def as_channel(x: object, name: str = "channel") -> Channel:
             f"low-power arrival probability, got {type(x).__name__}"
         )
     return BernoulliChannel(_probability(name, x))
+
+
+def channel_argument(channel: object, lam: object, function: str) -> tuple[Channel, str]:
+    """The channel of ``function(system, channel)`` or of the old spelling ``function(system, lam=...)``.
+
+    Parameters
+    ----------
+    channel : Channel, float or None
+        The ``channel`` argument.
+    lam : float or None
+        The ``lam`` keyword (the parameter's name before channels existed).
+    function : str
+        The public function's name, for the error when neither is given.
+
+    Returns
+    -------
+    (Channel, str)
+        The channel and the argument name its errors use (``"channel"`` or ``"lam"``).
+
+    Raises
+    ------
+    TypeError
+        Both or neither given, or not a channel or a number.
+    ValueError
+        A number outside [0, 1].
+    """
+    if lam is not None:
+        if channel is not None:
+            raise TypeError("give either channel or lam (its old name), not both")
+        return as_channel(lam, "lam"), "lam"
+    if channel is None:
+        raise TypeError(f"{function}() missing the channel: a fakeack channel or a float lam")
+    return as_channel(channel, "channel"), "channel"
+
+
+def is_paper_channel(ch: Channel) -> bool:
+    """Whether ``ch`` is the paper's channel: one state, a high-power packet always arrives.
+
+    On it every analysis keeps its structured i.i.d. route; its ``lam`` is ``ch.low[0]``.
+    """
+    return ch.n_states == 1 and float(ch.high[0]) == 1.0

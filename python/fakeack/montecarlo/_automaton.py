@@ -13,25 +13,13 @@ from typing import Any, cast
 from .. import _fakeack
 from ..attacks.automata import AttackerAutomaton, MimicryAttack, as_automaton
 from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack
-from ..model.channels import Channel, as_channel
+from ..model.channels import Channel, is_paper_channel
 from ..model.schedules import OfflineSchedule, OnlineDesign
 
 #: Longest offline period the automaton route passes to the core (as fakeack.Scenario).
 MAX_OFFLINE_PERIOD = 10_000_000
 
 SimAttack = Attack | MimicryAttack | AttackerAutomaton
-
-
-def channel_argument(channel: object, lam: object) -> tuple[Channel, str]:
-    """The channel of ``simulate(system, channel)`` or ``simulate(system, lam=...)``, and the name
-    its errors use. Both or neither is a TypeError."""
-    if lam is not None:
-        if channel is not None:
-            raise TypeError("give either channel or lam (its old name), not both")
-        return as_channel(lam, "lam"), "lam"
-    if channel is None:
-        raise TypeError("simulate() missing the channel: a fakeack channel or a float lam")
-    return as_channel(channel, "channel"), "channel"
 
 
 def schedule_argument(sched: object) -> OfflineSchedule | OnlineDesign:
@@ -55,11 +43,6 @@ def attack_argument(attack: object, sched: OfflineSchedule | OnlineDesign) -> Si
     if isinstance(sched, OfflineSchedule) and att is not None:
         raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
     return att
-
-
-def is_paper_channel(ch: Channel) -> bool:
-    """Whether ``ch`` is the paper's channel (one state, high power always arrives)."""
-    return ch.n_states == 1 and float(ch.high[0]) == 1.0
 
 
 def needs_automaton(ch: Channel, sched: OfflineSchedule | OnlineDesign, att: SimAttack | None) -> bool:

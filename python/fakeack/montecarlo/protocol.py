@@ -11,7 +11,7 @@ from .._internal.types import FloatArray, IntArray
 from .._internal.validate import MODES, PROTOCOLS, as_int, as_probability
 from ..attacks.automata import AttackerAutomaton, MimicryAttack
 from ..attacks.kinds import AttackLike, core_attack
-from ..model.channels import Channel, ChannelLike
+from ..model.channels import Channel, ChannelLike, channel_argument
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
 from . import _automaton
@@ -209,7 +209,7 @@ def simulate(
     True
     """
     core = compiled(system)
-    ch, channel_name = _automaton.channel_argument(channel, lam)
+    ch, channel_name = channel_argument(channel, lam, "simulate")
     sched = _automaton.schedule_argument(sched)
     att = _automaton.attack_argument(attack, sched)
     horizon = as_int("horizon", horizon, minimum=1)
