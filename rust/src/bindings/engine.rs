@@ -49,7 +49,7 @@ fn moves(lists: Moves) -> Vec<Vec<Move>> {
 /// 80 us a call, measured on the paper's scenario).
 const SMALL: u128 = 20_000;
 
-fn run<T: Send>(
+pub(crate) fn run<T: Send>(
     py: Python<'_>,
     size: u128,
     work: impl FnOnce(&AtomicBool) -> crate::Result<T> + Send,

@@ -20,6 +20,7 @@ use crate::OnlineDesign;
 
 mod attacks;
 mod automaton;
+mod channels;
 mod detection;
 mod engine;
 mod game;
@@ -93,6 +94,9 @@ fn fakeack_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<model::PySystem>()?;
     m.add_class::<attacks::PyAttack>()?;
     m.add_class::<engine::PyEngine>()?;
+    m.add_function(wrap_pyfunction!(channels::markov_beta_sweep, m)?)?;
+    m.add_function(wrap_pyfunction!(channels::markov_mask_j, m)?)?;
+    m.add_function(wrap_pyfunction!(channels::markov_worst_mask, m)?)?;
     m.add("ConvergenceError", m.py().get_type::<ConvergenceError>())?;
     m.add_function(wrap_pyfunction!(model::offline_schedule, m)?)?;
     m.add_function(wrap_pyfunction!(model::high_power_rate, m)?)?;

@@ -150,7 +150,7 @@ impl Channel {
 /// The one closed class of the K x K stochastic matrix `p` (row-major) as a membership mask;
 /// refused (naming `P`) when there are several. A state is in a closed class iff it is reachable
 /// from every state it reaches.
-fn closed_class(p: &[f64], k: usize) -> Result<Vec<bool>> {
+pub(crate) fn closed_class(p: &[f64], k: usize) -> Result<Vec<bool>> {
     let reach: Vec<Vec<bool>> = (0..k)
         .map(|s| {
             let mut seen = vec![false; k];
