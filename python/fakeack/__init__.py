@@ -60,7 +60,7 @@ from .detection import (
     flag_rates,
     interval_test,
 )
-from .engine import Scenario
+from .engine import Scenario, StabilityRegion, stability_region
 from .game import (
     GameSimulation,
     GameSolution,
@@ -133,6 +133,8 @@ __all__ = [
     "interval_test",
     "study_grid",
     "Scenario",
+    "stability_region",
+    "StabilityRegion",
     "GameSimulation",
     "GameSolution",
     "Payoff",

@@ -66,8 +66,8 @@ def test_validation_names_the_argument(kwargs, exc, arg):
         fa.OfflineSchedule(**kwargs)
 
 
-def test_ratio_routes_refuse_a_pattern_schedule(paper):
+def test_pattern_schedules_reach_the_curve(paper):
     s = fa.OfflineSchedule(pattern="100")
-    with pytest.raises(ValueError, match="fakeack.Scenario"):
-        fa.expected_trace_curve(paper, 0.5, s, 10)
+    curve = fa.expected_trace_curve(paper, 0.5, s, 10)
+    assert np.array_equal(curve.trace, fa.Scenario(paper, 0.5, s).cost_curve(10).trace)
     # fa.simulate takes a pattern on its automaton kernel (tests/montecarlo/test_automaton_mc.py).

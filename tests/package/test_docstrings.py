@@ -40,6 +40,8 @@ DOCTEST_MODULES = [
     "model.schedules",
     "model.system",
     "engine.scenario",
+    "engine.stability",
+    "montecarlo.curves",
 ]
 
 

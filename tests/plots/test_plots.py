@@ -100,7 +100,18 @@ CASES = {
     "plot_attack_families": ("game_inputs", 2, lambda d, ax: plots.plot_attack_families(d["families"], ax)),
     "plot_beta_bar": ("grid_inputs", 1, lambda d, ax: plots.plot_beta_bar(d["ds"], "paper", ax)),
     "plot_decision": ("grid_inputs", 2, lambda d, ax: plots.plot_decision(d["ds"], "paper", ax)),
+    "plot_stability_region": ("stability_inputs", 2, lambda d, ax: plots.plot_stability_region(d, ax)),
 }
+
+
+@pytest.fixture(scope="module")
+def stability_inputs(paper):
+    grid = np.linspace(0.1, 1.0, 4)
+    design = fa.OnlineDesign(2)
+    return [
+        fa.stability_region(paper, design, p=grid, q=grid, lam_good=0.5),
+        fa.stability_region(paper, fa.OfflineSchedule("1/7"), p=grid, q=grid, lam_good=0.5),
+    ]
 
 
 def test_every_public_plot_function_is_covered():

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numbers
+
 import numpy as np
 import numpy.typing as npt
 import scipy.sparse as sp
@@ -9,8 +11,19 @@ import scipy.sparse as sp
 from .. import _fakeack
 from .._internal.types import FloatArray, IntArray
 from .._internal.validate import as_int, as_probability
+from ..model.channels import ChannelLike, channel_argument, is_paper_channel
+from ..model.schedules import OnlineDesign
 from ..model.system import LinearSystem, compiled
-from .kinds import AttackLike, MaskBlocking, PeriodicBlocking, attack_argument, core_attack
+from .automata import AttackerAutomaton, MimicryAttack
+from .kinds import (
+    Attack,
+    AttackLike,
+    FlagInjection,
+    MaskBlocking,
+    PeriodicBlocking,
+    attack_argument,
+    core_attack,
+)
 
 __all__ = [
     "num_states",
@@ -135,15 +148,44 @@ def balance_residual(lam: float, z0: int, r: int, t: int, pi: npt.ArrayLike) -> 
     return _fakeack.balance_residual(lam, z0, r, t, arr)
 
 
+#: What :func:`j_attack` takes as its attack: the built-in ones and the engine's automata.
+AnyAttack = Attack | MimicryAttack | AttackerAutomaton
+
+
+def _any_attack(r: object, t: int | None, attack: object) -> AnyAttack:
+    """:func:`attack_argument`, also taking a :class:`MimicryAttack` or an :class:`AttackerAutomaton`
+    as ``attack`` (or in r's place)."""
+    if attack is None and t is None and isinstance(r, (MimicryAttack, AttackerAutomaton)):
+        attack, r = r, None
+    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
+        if r is not None or t is not None:
+            raise TypeError("give either r and t, or attack, not both")
+        return attack
+    return attack_argument(r, t, attack)  # type: ignore[arg-type]  # it validates any object
+
+
+def _is_number(x: object) -> bool:
+    """Whether ``x`` is a real number (what :func:`fakeack.model.as_channel` reads as ``lam``)."""
+    return isinstance(x, (numbers.Real, np.integer, np.floating)) and not isinstance(x, (bool, np.bool_))
+
+
+def _structured(att: AnyAttack) -> bool:
+    """Whether the structured renewal forms compute ``att`` (on the paper's channel)."""
+    if isinstance(att, (MimicryAttack, AttackerAutomaton)):
+        return False
+    return not (isinstance(att, FlagInjection) and att.min_gap > 1)
+
+
 def j_attack(
     system: LinearSystem,
-    lam: float,
-    z0: int,
-    r: int | AttackLike = None,
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    r: int | AttackLike | MimicryAttack | AttackerAutomaton = None,
     t: int | None = None,
     mu: float = 1.0,
     *,
-    attack: AttackLike = None,
+    attack: AttackLike | MimicryAttack | AttackerAutomaton = None,
+    lam: float | None = None,
 ) -> float:
     r"""Cost :math:`J(\tilde\theta_{\mathrm{on}})` under a fake-ACK attack (Sec. IV-B, eq. (14)).
 
@@ -157,12 +199,20 @@ def j_attack(
     renewal cycle from one fresh start to the next (see :class:`fakeack.RandomBlocking` and
     :class:`fakeack.FlagInjection`).
 
+    These structured forms run on the paper's channel (one state, a high-power packet always
+    arrives) for the built-in attacks with ``min_gap = 1``. Every other case — a Markov channel,
+    :class:`fakeack.MimicryAttack`, :class:`fakeack.AttackerAutomaton`, a
+    :class:`fakeack.FlagInjection` with ``min_gap > 1`` — is the exact engine's
+    :meth:`fakeack.Scenario.cost` (the coupled Stein equations of docs page "The exact engine").
+
     Parameters
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        :class:`fakeack.BernoulliChannel`, :class:`fakeack.MarkovChannel`,
+        :class:`fakeack.GilbertElliott`, or a float: the paper's channel of that low-power arrival
+        probability :math:`\lambda` (in (0, 1) on the structured route).
     z0 : int
         Memory length of the event detector.
     r, t : int, optional
@@ -172,17 +222,35 @@ def j_attack(
         Memory mix :math:`\mu \in [0, 1]` as in :func:`fakeack.j_online`. For ``mu < 1`` the chain
         also needs the zeros in the memory since its last reset (the paper says its results cover
         this case but never writes it down). Costs :math:`O(r^2)` for ``mu < 1``.
-    attack : PeriodicBlocking, MaskBlocking, RandomBlocking, FlagInjection or str, optional
-        The attack, instead of ``r, t`` (an attack object may also be passed in r's place), or a
-        spelling such as ``"1/5"``, ``"random:0.3"`` or ``"inject:0.1+random:0.3"``. A mask that
-        blocks every flag-ACK is refused: its cost is :func:`fakeack.j_max`.
+    attack : attack, str, MimicryAttack or AttackerAutomaton, optional
+        The attack, instead of ``r, t`` (an attack object may also be passed in r's place):
+        :class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
+        :class:`fakeack.RandomBlocking`, :class:`fakeack.FlagInjection` (any ``min_gap``),
+        :class:`fakeack.MimicryAttack` (its ``None`` channel and design are this call's),
+        :class:`fakeack.AttackerAutomaton`, or a spelling such as ``"1/5"``, ``"random:0.3"`` or
+        ``"inject:0.1+random:0.3"``. A mask that blocks every flag-ACK is refused on every
+        channel: its cost is that of the always-low sensor (:func:`fakeack.j_max` on the paper's
+        channel, ``fakeack.Scenario(system, channel, fakeack.OfflineSchedule(pattern="0"))``
+        elsewhere).
+    lam : float, keyword-only, optional
+        The former name of ``channel`` (a float): ``j_attack(system, lam=0.5, z0=2, ...)`` still
+        works. Giving both is a TypeError.
 
     Returns
     -------
     float
-        The attacked cost, always finite in exact arithmetic (a finite r bounds the holding
-        time); ``inf`` (never NaN) when it lies beyond the double range, as long blocked runs
-        reach where :math:`(1-\lambda)\rho(A)^2 \ge 1`.
+        The attacked cost; ``inf`` (never NaN) where it is infinite or lies beyond the double
+        range. On the structured route it is always finite in exact arithmetic (a finite r
+        bounds the holding time), and ``inf`` only when long blocked runs reach where
+        :math:`(1-\lambda)\rho(A)^2 \ge 1`; on the engine route it is ``inf`` exactly when
+        :meth:`fakeack.Scenario.stability_index` is at least 1.
+
+    Raises
+    ------
+    TypeError, ValueError
+        For a missing or doubly given channel or attack, or a bad argument (naming it); on the
+        engine route, a ValueError naming the channel or the attack when from some state no
+        packet ever arrives again.
 
     Examples
     --------
@@ -195,15 +263,39 @@ def j_attack(
     True
     >>> round(fa.j_attack(s, 0.5, 2, attack=fa.RandomBlocking(0.2)), 6)
     1.832057
+    >>> round(fa.j_attack(s, 0.5, 2, attack=fa.MimicryAttack()), 3)
+    2.181
+    >>> round(fa.j_attack(s, fa.GilbertElliott(0.1, 0.3, 0.9, 0.2), 2, attack=fa.MimicryAttack()), 3)
+    2.011
     """
     core = compiled(system)
-    att = attack_argument(r, t, attack)
-    lam = as_probability("lam", lam)
+    att = _any_attack(r, t, attack)
+    number = lam if lam is not None and channel is None else channel if lam is None else None
+    if _structured(att) and _is_number(number):
+        # A number is the paper's channel: today's route, without building the channel object.
+        ch, channel_name, paper = None, "channel" if lam is None else "lam", True
+    else:
+        ch, channel_name = channel_argument(channel, lam, "j_attack")
+        paper = is_paper_channel(ch)
+    if z0 is None:
+        raise TypeError("j_attack() missing the memory length z0")
     z0 = as_int("z0", z0, minimum=1)
     mu = as_probability("mu", mu, closed=True)
     if isinstance(att, MaskBlocking) and all(att.mask):
-        raise ValueError("mask blocks every flag-ACK; its cost is fakeack.j_max(system, lam)")
-    return core.j_attack(lam, z0, mu, core_attack(att))
+        hint = (
+            "fakeack.j_max(system, lam)"
+            if paper
+            else "fakeack.Scenario(system, channel, fakeack.OfflineSchedule(pattern='0')).cost()"
+        )
+        raise ValueError(f"mask blocks every flag-ACK; its cost is {hint}")
+    if paper and _structured(att):
+        assert not isinstance(att, (MimicryAttack, AttackerAutomaton))  # _structured
+        lam_value = as_probability(channel_name, number if ch is None else float(ch.low[0]))
+        return core.j_attack(lam_value, z0, mu, core_attack(att))
+    from ..engine.scenario import Scenario  # the engine imports this package's attack objects
+
+    assert ch is not None  # only the structured route skips the channel object
+    return Scenario(system, ch, OnlineDesign(z0, mu), att).cost()
 
 
 def general_attack_chain(

@@ -31,7 +31,7 @@ from ..detection.flags import FlagRates
 from ..model.channels import Channel, as_channel
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
-from ..montecarlo.curves import TraceCurve
+from ..montecarlo.trace import TraceCurve
 
 __all__ = [
     "Scenario",

@@ -23,6 +23,7 @@ from .frontier import plot_frontiers
 from .game import plot_game
 from .grid import plot_beta_bar, plot_decision, write_heat_maps
 from .paper import JkCurve, have_matplotlib, plot_beta_sweep, plot_jk, plot_stationary
+from .stability import plot_stability_region
 
 __all__ = [
     "have_matplotlib",
@@ -37,4 +38,5 @@ __all__ = [
     "plot_beta_bar",
     "plot_decision",
     "write_heat_maps",
+    "plot_stability_region",
 ]
