@@ -79,6 +79,7 @@ from .model import (
     LinearSystem,
     MarkovChannel,
     OfflineSchedule,
+    OfflineSearch,
     OnlineDesign,
     OnlineSchedule,
     design_online,
@@ -87,6 +88,7 @@ from .model import (
     j_offline,
     j_online,
     offline_schedule,
+    offline_search,
 )
 from .montecarlo import (
     SimulationResult,
@@ -184,6 +186,8 @@ __all__ = [
     "j_online",
     "num_states",
     "offline_schedule",
+    "offline_search",
+    "OfflineSearch",
     "online_high_power_rate",
     "stationary_distribution",
 ]

@@ -24,6 +24,9 @@ __all__ = [
     "high_power_rate",
     "num_states",
     "offline_schedule",
+    "markov_beta_sweep",
+    "markov_mask_j",
+    "markov_worst_mask",
     "raise_core_error",
     "simulate",
     "simulate_automaton",
@@ -143,7 +146,9 @@ def markov_beta_sweep(
 ) -> tuple[
     npt.NDArray[np.uint32], npt.NDArray[np.uint32], npt.NDArray[np.float64], npt.NDArray[np.float64]
 ]: ...
-def markov_mask_j(system: LinearSystem, channel: _ChannelParts, z0: int, mu: float, mask: list[bool]) -> float: ...
+def markov_mask_j(
+    system: LinearSystem, channel: _ChannelParts, z0: int, mu: float, mask: list[bool]
+) -> float: ...
 def markov_worst_mask(
     system: LinearSystem, channel: _ChannelParts, z0: int, mu: float, t: int, blocked: int
 ) -> tuple[list[bool], float, float]: ...

@@ -38,6 +38,7 @@ DOCTEST_MODULES = [
     "game.policies",
     "model.channels",
     "model.schedules",
+    "model.offline",
     "model.system",
     "engine.scenario",
     "engine.stability",

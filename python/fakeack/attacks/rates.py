@@ -5,17 +5,59 @@ from __future__ import annotations
 
 from .. import _fakeack
 from .._internal.validate import as_real
-from ..model.schedules import OnlineDesign, check_online
-from .kinds import Attack, AttackLike, as_attack, core_attack
+from ..model.channels import Channel, ChannelLike, is_paper_channel
+from ..model.exact import channel_of, engine
+from ..model.schedules import OnlineDesign, check_online_channel
+from .automata import AttackerAutomaton, MimicryAttack
+from .kinds import Attack, AttackLike, EngineOnlyAttack, FlagInjection, as_attack, core_attack
 
 __all__ = [
     "high_power_rate",
     "online_high_power_rate",
     "energy_per_step",
+    "engine_for",
+    "structured_route",
 ]
 
+#: What the rates take as an attack: any built-in spelling, or an automaton of the engine.
+AnyAttack = AttackLike | MimicryAttack | AttackerAutomaton
 
-def high_power_rate(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) -> float:
+
+def structured_route(ch: Channel, attack: object) -> bool:
+    """Whether today's structured route computes this channel and attack (else the exact engine):
+    the paper's channel and an attack it knows (not a :class:`fakeack.MimicryAttack`, an
+    :class:`fakeack.AttackerAutomaton` nor a :class:`fakeack.FlagInjection` with ``min_gap > 1``,
+    which only the engine computes, as :func:`fakeack.j_attack` does)."""
+    if not is_paper_channel(ch) or isinstance(attack, EngineOnlyAttack):
+        return False
+    return not (isinstance(attack, FlagInjection) and attack.min_gap > 1)
+
+
+def engine_for(ch: Channel, design: OnlineDesign, attack: object) -> _fakeack.Engine:
+    """The exact engine of the online ``design`` on ``ch`` under ``attack``, as
+    :class:`fakeack.Scenario` builds it (a mimicry attacker's ``None`` channel and design are
+    these)."""
+    z0, mu = design
+    if isinstance(attack, MimicryAttack):
+        vch = attack.channel if attack.channel is not None else ch
+        vd = attack.design if attack.design is not None else design
+        return engine(ch, z0, mu, mimicry=(vch.P.tolist(), vch.low.tolist(), vch.high.tolist(), vd.z0, vd.mu))
+    if isinstance(attack, AttackerAutomaton):
+        moves = ([list(ev) for ev in attack.flag], [list(ev) for ev in attack.quiet], attack.start)
+        return engine(ch, z0, mu, automaton=moves)
+    a = as_attack(attack)  # type: ignore[arg-type]  # as_attack validates any object
+    gap = a.min_gap if isinstance(a, FlagInjection) else 1
+    return engine(ch, z0, mu, attack=core_attack(a, engine=True), min_gap=gap)
+
+
+def high_power_rate(
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    attack: AnyAttack = None,
+    mu: float = 1.0,
+    *,
+    lam: float | None = None,
+) -> float:
     r"""Long-run fraction of steps at high power under an attack (exact).
 
     The sensor uses high power after every flag-ACK that reaches it, genuine or forged, so this is
@@ -28,29 +70,41 @@ def high_power_rate(lam: float, z0: int, attack: AttackLike = None, mu: float = 
 
     This is the one high-power rate of the package: :func:`fakeack.online_high_power_rate` is its
     attack-free case and :func:`fakeack.delivered_flag_rate` the same function under the name of
-    the flag-ACKs it counts.
+    the flag-ACKs it counts. Under a channel other than the paper's, and for the attacks only
+    the exact engine computes, it is :meth:`fakeack.Scenario.high_power_rate`.
 
     Parameters
     ----------
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The channel; a float is the paper's, with arrival probability :math:`\lambda \in (0, 1)`
+        at low power.
     z0 : int
         Memory length of the event detector.
     attack : None or attack, optional
         Any attack (:class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
-        :class:`fakeack.RandomBlocking`, :class:`fakeack.FlagInjection`, or ``(r, t)``).
+        :class:`fakeack.RandomBlocking`, :class:`fakeack.FlagInjection`, or ``(r, t)``), and those
+        only the exact engine computes: ``FlagInjection(min_gap > 1)``, a
+        :class:`fakeack.MimicryAttack` or an :class:`fakeack.AttackerAutomaton`.
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
+    lam : float, keyword-only, optional
+        The former name of ``channel`` (a float).
 
     Examples
     --------
+    >>> round(high_power_rate(GilbertElliott(0.1, 0.1, 1, 0), 2), 6)   # bursts: 1/7 if i.i.d.
+    0.166052
     >>> round(high_power_rate(0.5, 2), 12) == round(1 / 7, 12)
     True
     >>> high_power_rate(0.5, 2, FlagInjection(1.0))
     1.0
     """
-    lam, design = check_online(lam, z0, mu)
-    return design_high_power_rate(lam, design, as_attack(attack))
+    ch, name = channel_of(channel, lam, "high_power_rate")
+    if not structured_route(ch, attack):
+        design = OnlineDesign(z0, mu)  # type: ignore[arg-type]  # OnlineDesign validates z0
+        return float(engine_for(ch, design, attack).high_power_rate())
+    lam_v, design = check_online_channel(ch, name, z0, mu, "high_power_rate")
+    return design_high_power_rate(lam_v, design, as_attack(attack))  # type: ignore[arg-type]
 
 
 def design_high_power_rate(lam: float, design: OnlineDesign, attack: Attack | None) -> float:
@@ -84,7 +138,14 @@ def online_high_power_rate(lam: float, z0: int, mu: float = 1.0) -> float:
 
 
 def energy_per_step(
-    lam: float, z0: int, Delta: float, delta: float, attack: AttackLike = None, mu: float = 1.0
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    Delta: float | None = None,
+    delta: float | None = None,
+    attack: AnyAttack = None,
+    mu: float = 1.0,
+    *,
+    lam: float | None = None,
 ) -> float:
     r"""Long-run energy per step: :math:`\delta + (\Delta - \delta)\,f`, f the high-power rate.
 
@@ -95,8 +156,9 @@ def energy_per_step(
 
     Parameters
     ----------
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The channel; a float is the paper's, with arrival probability :math:`\lambda \in (0, 1)`
+        at low power.
     z0 : int
         Memory length of the event detector.
     Delta, delta : float
@@ -105,6 +167,8 @@ def energy_per_step(
         As in :func:`high_power_rate`.
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
+    lam : float, keyword-only, optional
+        The former name of ``channel`` (a float).
 
     Examples
     --------
@@ -116,4 +180,4 @@ def energy_per_step(
         raise ValueError(f"delta must be non-negative, got {lo}")
     if not hi > lo:
         raise ValueError(f"Delta must exceed delta, got Delta={hi}, delta={lo}")
-    return lo + (hi - lo) * high_power_rate(lam, z0, attack, mu)
+    return lo + (hi - lo) * high_power_rate(channel, z0, attack, mu, lam=lam)

@@ -11,8 +11,10 @@ import numpy as np
 from .. import _fakeack
 from .._internal.validate import as_int
 from ..attacks.kinds import AttackLike, as_attack, core_attack
-from ..attacks.rates import high_power_rate
-from ..model.schedules import OnlineDesign, check_online
+from ..attacks.rates import AnyAttack, engine_for, high_power_rate, structured_route
+from ..model.channels import ChannelLike
+from ..model.exact import channel_of
+from ..model.schedules import OnlineDesign, check_online, check_online_channel
 from ..model.system import LinearSystem
 
 __all__ = [
@@ -102,7 +104,14 @@ class FlagRates(NamedTuple):
         return self.sent - (self.delivered - self.forged)
 
 
-def flag_rates(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) -> FlagRates:
+def flag_rates(
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    attack: AnyAttack = None,
+    mu: float = 1.0,
+    *,
+    lam: float | None = None,
+) -> FlagRates:
     r"""Long-run flag-ACKs per step: sent by the detector, reaching the sensor, forged (exact).
 
     Under a periodic attack each level of the attacker's counter is left at the same rate
@@ -110,19 +119,26 @@ def flag_rates(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) 
     period of t flags sends :math:`tF` and delivers :math:`(t - \text{blocked})F`. Independent
     blocking delivers :math:`1-\beta` of what is sent; a :class:`fakeack.FlagInjection` adds
     :math:`\gamma(1 - \text{sent})` forged flags, which the sensor cannot tell from genuine
-    ones, so they count as delivered. The rates do not depend on the plant.
+    ones, so they count as delivered. The rates do not depend on the plant. Under a channel
+    other than the paper's, and for the attacks only the exact engine computes, they are
+    :meth:`fakeack.Scenario.flag_rates`.
 
     Parameters
     ----------
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The channel; a float is the paper's, with arrival probability :math:`\lambda \in (0, 1)`
+        at low power.
     z0 : int
         Memory length of the event detector.
     attack : None, attack or (r, t), optional
         Any attack (:class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
-        :class:`fakeack.RandomBlocking`, :class:`fakeack.FlagInjection`).
+        :class:`fakeack.RandomBlocking`, :class:`fakeack.FlagInjection`), and those only the exact
+        engine computes: ``FlagInjection(min_gap > 1)``, a :class:`fakeack.MimicryAttack` or an
+        :class:`fakeack.AttackerAutomaton`.
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
+    lam : float, keyword-only, optional
+        The former name of ``channel`` (a float).
 
     Returns
     -------
@@ -132,12 +148,19 @@ def flag_rates(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) 
 
     Examples
     --------
+    >>> round(flag_rates(GilbertElliott(0.1, 0.1, 1, 0), 2, MaskBlocking([1])).sent, 6)  # all blocked
+    0.236842
     >>> sent, delivered, forged = flag_rates(0.5, 2)
     >>> round(sent, 12) == round(delivered, 12) == round(1 / 7, 12) and forged == 0
     True
     """
-    lam, design = check_online(lam, z0, mu)
-    return FlagRates(*_fakeack.flag_rates(lam, design.z0, design.mu, core_attack(as_attack(attack))))
+    ch, name = channel_of(channel, lam, "flag_rates")
+    if not structured_route(ch, attack):
+        design = OnlineDesign(z0, mu)  # type: ignore[arg-type]  # OnlineDesign validates z0
+        return FlagRates(*(float(x) for x in engine_for(ch, design, attack).flag_rates()))
+    lam_v, design = check_online_channel(ch, name, z0, mu, "flag_rates")
+    att = core_attack(as_attack(attack))  # type: ignore[arg-type]  # the engine's went above
+    return FlagRates(*_fakeack.flag_rates(lam_v, design.z0, design.mu, att))
 
 
 def delivered_flag_rate(lam: float, z0: int, attack: AttackLike = None, mu: float = 1.0) -> float:

@@ -2,6 +2,7 @@
 ACK-based online) with their costs and the online design."""
 
 from .channels import BernoulliChannel, Channel, GilbertElliott, MarkovChannel, as_channel
+from .offline import OfflineSearch, offline_search
 from .schedules import (
     OfflineSchedule,
     OnlineDesign,
@@ -31,4 +32,6 @@ __all__ = [
     "j_max",
     "OfflineSchedule",
     "OnlineSchedule",
+    "offline_search",
+    "OfflineSearch",
 ]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
@@ -13,6 +12,10 @@ import numpy as np
 from .. import _fakeack
 from .._internal.types import IntArray, RatioLike
 from .._internal.validate import as_fraction, as_int, as_probability, as_ratio
+from .channels import Channel, ChannelLike, is_paper_channel
+from .design import design_paper, design_under_channel
+from .exact import channel_of, online_cost, pattern_cost
+from .offline import offline_search
 from .system import LinearSystem, compiled
 
 __all__ = [
@@ -67,22 +70,39 @@ def energy_ratio(Psi: RatioLike, Delta: RatioLike, delta: RatioLike) -> Fraction
     return (psi - lo) / (hi - lo)
 
 
-def offline_schedule(ratio: RatioLike) -> IntArray:
+def offline_schedule(
+    ratio: RatioLike,
+    channel: ChannelLike | None = None,
+    *,
+    system: LinearSystem | None = None,
+    max_period: int | None = None,
+) -> IntArray:
     r"""One period of the optimal offline schedule :math:`\theta^\star_{\mathrm{off}}` (Theorem 3.1).
 
     With :math:`s_0 = \lfloor q/p \rfloor - 1`, the period holds :math:`m = q - p(s_0+1)` blocks
     ``1 0...0`` of length :math:`s_0+2` followed by :math:`n = p(s_0+2) - q` blocks of length
-    :math:`s_0+1` (Model note 1: the printed pattern swaps m and n).
+    :math:`s_0+1` (Model note 1: the printed pattern swaps m and n). Under a channel other than
+    the paper's the best pattern of that density depends on the system and need not be this
+    one: give ``channel`` and ``system`` for the pattern of :func:`fakeack.offline_search`.
 
     Parameters
     ----------
     ratio : Fraction, int/int string or float
-        Energy ratio :math:`p/q \in (0, 1)`, e.g. from :func:`energy_ratio`.
+        Energy ratio :math:`p/q \in (0, 1)` (the fraction of high-power steps), e.g. from
+        :func:`energy_ratio`.
+    channel : Channel or float, optional
+        None or the paper's channel (a float): Theorem 3.1's pattern. Another channel needs
+        ``system``.
+    system : LinearSystem, keyword-only, optional
+        The system the patterns are ranked by (only with a channel).
+    max_period : int, keyword-only, optional
+        As in :func:`fakeack.offline_search` (ignored on the paper's channel).
 
     Returns
     -------
     numpy.ndarray
-        ``int64`` array of length q with exactly p ones (1 = high power :math:`\Delta`).
+        ``int64`` array of length q (a multiple of q under a channel) with a fraction p/q of ones
+        (1 = high power :math:`\Delta`).
 
     Examples
     --------
@@ -90,41 +110,76 @@ def offline_schedule(ratio: RatioLike) -> IntArray:
     [1, 0, 0, 0, 0, 0, 0]
     """
     r = as_ratio("ratio", ratio)
-    return _fakeack.offline_schedule(r.numerator, r.denominator)
+    ch = None if channel is None else channel_of(channel, None, "offline_schedule")[0]
+    if ch is None and (system is not None or max_period is not None):
+        raise TypeError("channel: system and max_period are used only with a channel")
+    if ch is None or is_paper_channel(ch):
+        return _fakeack.offline_schedule(r.numerator, r.denominator)
+    if system is None:
+        raise TypeError("system: the best pattern under this channel depends on the system")
+    return offline_search(system, ch, r, max_period=max_period).pattern
 
 
-def j_offline(system: LinearSystem, lam: float, ratio: RatioLike) -> float:
-    r"""Cost J of the optimal offline schedule (Proposition 3.1, with m and n as corrected).
+def j_offline(
+    system: LinearSystem,
+    channel: ChannelLike | None = None,
+    ratio: RatioLike | None = None,
+    *,
+    pattern: str | Sequence[int] | None = None,
+    lam: float | None = None,
+    max_period: int | None = None,
+) -> float:
+    r"""Cost J of the optimal offline schedule (Proposition 3.1, with m and n as corrected), or of
+    a given pattern.
+
+    On the paper's channel, with :math:`a = 1-\lambda` and :math:`\mathrm{tr}_i = \mathrm{Tr}\,h^i(\bar P)`,
 
     .. math::
        J = \frac{1}{q}\Big[m\sum_{i=0}^{s_0+1}\big(1+\lambda(s_0+1-i)\big)a^i\,\mathrm{tr}_i
-           + n\sum_{i=0}^{s_0}\big(1+\lambda(s_0-i)\big)a^i\,\mathrm{tr}_i\Big],
+           + n\sum_{i=0}^{s_0}\big(1+\lambda(s_0-i)\big)a^i\,\mathrm{tr}_i\Big].
 
-    with :math:`a = 1-\lambda` and :math:`\mathrm{tr}_i = \mathrm{Tr}\,h^i(\bar P)`.
+    Under another channel, J of the best pattern of :func:`fakeack.offline_search`; with
+    ``pattern``, J of that pattern on any channel. Both by the exact engine.
 
     Parameters
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The channel; a float is the paper's, with arrival probability :math:`\lambda \in (0, 1)`
+        at low power.
     ratio : Fraction
-        Energy ratio :math:`p/q \in (0, 1)`.
+        Energy ratio :math:`p/q \in (0, 1)`. Give exactly one of ``ratio`` and ``pattern``.
+    pattern : str or sequence of 0/1, keyword-only, optional
+        One period of power levels, as in :class:`OfflineSchedule`.
+    lam : float, keyword-only, optional
+        The former name of ``channel`` (a float).
+    max_period : int, keyword-only, optional
+        Longest period of :func:`fakeack.offline_search` (with ``ratio``; ignored on the paper's
+        channel, where Theorem 3.1 needs no search).
 
     Returns
     -------
     float
-        :math:`\lim \frac1T\sum_{k\le T}\mathrm{Tr}\,\mathbb E[P_k]` under
-        :func:`offline_schedule`. ``math.inf`` (never NaN) when this finite value lies beyond the
-        double range (about 1.8e308): an IEEE overflow, as numpy gives, which a long period
-        reaches where :math:`(1-\lambda)\rho(A)^2 \ge 1` (e.g. the paper's system at
-        ``lam = 0.25``, ``ratio = 1/16384``). :func:`j_max`'s ``inf`` means something else: that
-        cost diverges.
+        :math:`\lim \frac1T\sum_{k\le T}\mathrm{Tr}\,\mathbb E[P_k]`. On the paper's channel
+        ``math.inf`` (never NaN) when this finite value lies beyond the double range (about
+        1.8e308): an IEEE overflow, which a long period reaches where
+        :math:`(1-\lambda)\rho(A)^2 \ge 1` (e.g. the paper's system at ``lam = 0.25``,
+        ``ratio = 1/16384``). By the engine, ``inf`` where the cost diverges.
     """
     core = compiled(system)
-    lam = as_probability("lam", lam)
-    r = as_ratio("ratio", ratio)
-    return core.j_offline(lam, r.numerator, r.denominator)
+    ch, name = channel_of(channel, lam, "j_offline")
+    if (ratio is None) == (pattern is None):
+        raise TypeError("give exactly one of ratio and pattern")
+    if pattern is not None:
+        if max_period is not None:
+            raise TypeError("max_period: a given pattern is evaluated, not searched")
+        return pattern_cost(system, ch, _as_pattern(pattern))
+    if is_paper_channel(ch):  # Theorem 3.1: the evenly spread pattern, whatever max_period
+        lam_v = as_probability(name, ch.low[0])
+        r = as_ratio("ratio", ratio)
+        return core.j_offline(lam_v, r.numerator, r.denominator)
+    return offline_search(system, ch, as_ratio("ratio", ratio), max_period=max_period).j
 
 
 def check_online(lam: float, z0: int, mu: float) -> tuple[float, OnlineDesign]:
@@ -132,34 +187,46 @@ def check_online(lam: float, z0: int, mu: float) -> tuple[float, OnlineDesign]:
     return as_probability("lam", lam), OnlineDesign(z0, mu)
 
 
-def j_online(system: LinearSystem, lam: float, z0: int, mu: float = 1.0) -> float:
+def j_online(
+    system: LinearSystem,
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    mu: float = 1.0,
+    *,
+    lam: float | None = None,
+) -> float:
     r"""Cost J of the ACK-based online schedule :math:`\theta_{\mathrm{on}}` (Theorem 4.5).
 
-    Theorem 4.5 of the paper, after the online schedule of Han et al. [1]_, corrected as in
-    Model note 2, with :math:`a = 1-\lambda`:
+    On the paper's channel, Theorem 4.5 of the paper, after the online schedule of Han et al.
+    [1]_, corrected as in Model note 2, with :math:`a = 1-\lambda`:
 
     .. math::
        J = \frac{\lambda\big[\sum_{i=0}^{z_0} a^i\,\mathrm{tr}_i + (1-\mu)\,a^{z_0+1}
            \mathrm{tr}_{z_0+1}\big]}{1 - \mu a^{z_0+1} - (1-\mu) a^{z_0+2}}.
 
+    Under another channel, the exact engine (:class:`fakeack.Scenario` without attack).
+
     Parameters
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The channel; a float is the paper's, with arrival probability :math:`\lambda \in (0, 1)`
+        at low power.
     z0 : int
         Memory length :math:`z_0 \ge 1`: a flag-ACK after :math:`z_0` consecutive losses.
     mu : float, optional
         Probability :math:`\mu \in [0, 1]` that the detector uses the :math:`z_0`-bit memory at a
         step (:math:`z_0+1` bits otherwise). Default 1 (fixed length).
+    lam : float, keyword-only, optional
+        The former name of ``channel`` (a float).
 
     Returns
     -------
     float
         ``math.inf`` (never NaN) when this finite cost lies beyond the double range (a memory of
         thousands of steps where :math:`(1-\lambda)\rho(A)^2 \ge 1`); unlike :func:`j_max`'s
-        ``inf``, not a divergence.
+        ``inf``, not a divergence. By the engine, ``inf`` where the cost diverges.
 
     References
     ----------
@@ -167,8 +234,25 @@ def j_online(system: LinearSystem, lam: float, z0: int, mu: float = 1.0) -> floa
        estimation with communication energy constraint", IEEE TAC, 2014.
     """
     core = compiled(system)
-    lam, design = check_online(lam, z0, mu)
-    return core.j_online(lam, design.z0, design.mu)
+    ch, name = channel_of(channel, lam, "j_online")
+    if not is_paper_channel(ch):
+        design = OnlineDesign(_required("z0", z0, "j_online"), mu)
+        return online_cost(system, ch, design.z0, design.mu)
+    lam_v, design = check_online_channel(ch, name, z0, mu, "j_online")
+    return core.j_online(lam_v, design.z0, design.mu)
+
+
+def _required(name: str, value: int | None, function: str) -> int:
+    if value is None:
+        raise TypeError(f"{function}() missing {name}")
+    return value
+
+
+def check_online_channel(
+    ch: Channel, name: str, z0: int | None, mu: float, function: str
+) -> tuple[float, OnlineDesign]:
+    """The paper channel's ``lam`` (named ``name``) and the design, validated in that order."""
+    return as_probability(name, ch.low[0]), OnlineDesign(_required("z0", z0, function), mu)
 
 
 class _Design(NamedTuple):
@@ -209,9 +293,15 @@ class OnlineDesign(_Design):
         return super().__new__(cls, as_int("z0", z0, minimum=1), as_probability("mu", mu, closed=True))
 
     @classmethod
-    def design(cls, lam: float | Fraction, ratio: RatioLike) -> OnlineDesign:
+    def design(
+        cls,
+        channel: ChannelLike | Fraction | None = None,
+        ratio: RatioLike | None = None,
+        *,
+        lam: float | None = None,
+    ) -> OnlineDesign:
         """The schedule that spends the energy ratio exactly (:func:`fakeack.design_online`)."""
-        return design_online(lam, ratio)
+        return design_online(channel, ratio, lam=lam)
 
     def __str__(self) -> str:
         return f"online z0={self.z0}" + ("" if self.mu == 1.0 else f", mu={self.mu:.6g}")
@@ -221,26 +311,29 @@ OnlineSchedule = OnlineDesign
 """The online schedule as the simulation's schedule: the same class as :class:`OnlineDesign`."""
 
 
-def _rate_exact(lam: Fraction, z0: int, mu: Fraction) -> Fraction:
-    a = 1 - lam
-    return lam * a**z0 * (mu + (1 - mu) * a) / (1 - mu * a ** (z0 + 1) - (1 - mu) * a ** (z0 + 2))
-
-
-def design_online(lam: float | Fraction, ratio: RatioLike) -> OnlineDesign:
+def design_online(
+    channel: ChannelLike | Fraction | None = None, ratio: RatioLike | None = None, *, lam: float | None = None
+) -> OnlineDesign:
     r"""The online schedule :math:`(z_0, \mu)` whose high-power rate equals the energy ratio.
 
-    The rate :math:`f(z_0, \mu)` of :func:`online_high_power_rate` falls from :math:`f(z_0, 1)` to
-    :math:`f(z_0, 0) = f(z_0+1, 1)` as :math:`\mu` goes from 1 to 0, so the budget fixes
-    :math:`z_0` (the bracket with :math:`f(z_0+1,1) < p/q \le f(z_0,1)`) and then :math:`\mu` in
-    closed form. All arithmetic is exact (:class:`fractions.Fraction`; a float ``lam`` is taken at
-    its exact binary value unless a short fraction rounds to it).
+    The rate :math:`f(z_0, \mu)` of :func:`fakeack.high_power_rate` without attack has
+    :math:`f(z_0, 0) = f(z_0+1, 1)`, so the budget fixes :math:`z_0` (the bracket with
+    :math:`f(z_0+1,1) < p/q \le f(z_0,1)`, by comparing the rates with p/q) and then :math:`\mu`.
+    On the paper's channel f falls in both, :math:`\mu` has a closed form and all arithmetic is
+    exact (:class:`fractions.Fraction`; a float ``lam`` is taken at its exact binary value unless
+    a short fraction rounds to it). Under another channel f is the exact engine's rate, not
+    linear-fractional in :math:`\mu`, and :math:`\mu` is the root of :math:`f(z_0, \mu) = p/q`
+    by bracketing bisection to a width of 1e-15 (:func:`fakeack.model.design.design_under_channel`).
 
     Parameters
     ----------
-    lam : float or Fraction
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel, float or Fraction
+        The channel; a number is the paper's, with arrival probability :math:`\lambda \in (0, 1)`
+        at low power (a Fraction is used exactly).
     ratio : Fraction
         Energy ratio :math:`p/q`, from :func:`energy_ratio`.
+    lam : float or Fraction, keyword-only, optional
+        The former name of ``channel`` (a number).
 
     Returns
     -------
@@ -251,93 +344,54 @@ def design_online(lam: float | Fraction, ratio: RatioLike) -> OnlineDesign:
     Raises
     ------
     ValueError
-        If the budget exceeds :math:`f(1, 1) = a/(1+a)`, the most any online schedule with
-        :math:`z_0 \ge 1` can spend: the sensor should then simply transmit more often at high power.
+        Naming ``ratio`` if no online schedule meets the budget: above :math:`f(1, 1)` (on the
+        paper's channel :math:`a/(1+a)`), the most any online schedule with :math:`z_0 \ge 1` can
+        spend (the sensor should then simply transmit more often at high power), or so small
+        that the memory would be too long.
     """
-    lam_f = as_probability("lam", lam)
-    lam_q = as_fraction("lam", lam)
-    rho = as_ratio("ratio", ratio)
-    one = Fraction(1)
-    top = _rate_exact(lam_q, 1, one)
-    if rho > top:
-        raise ValueError(
-            f"ratio {rho} exceeds the largest high-power rate an online schedule with z0 >= 1 can "
-            f"use at lam={lam_f} ({float(top):.6g} = (1-lam)/(2-lam))"
-        )
-    # f(z, 1) falls geometrically in z: bracket z0 in floats (bisection), then settle the boundary
-    # exactly, where exact powers stay cheap.
-    z0 = _largest_z_float(lam_f, float(rho))
-    if z0 > MAX_DESIGN_Z0:
-        raise ValueError(
-            f"ratio {rho} is so small that the online schedule would need a memory of about {z0} "
-            f"steps (more than {MAX_DESIGN_Z0})"
-        )
-    if z0 <= EXACT_DESIGN_Z0:
-        z0 = max(1, z0 - 1)
-        while _rate_exact(lam_q, z0 + 1, one) >= rho:
-            z0 += 1
-        # Now f(z0+1, 1) < rho <= f(z0, 1).
-        if _rate_exact(lam_q, z0, one) == rho:
-            return OnlineDesign(z0, 1.0)
-        a = 1 - lam_q
-        mu_q = (rho * (1 - a ** (z0 + 2)) - lam_q * a ** (z0 + 1)) / ((1 - a) * a**z0 * (lam_q + rho * a))
-        return OnlineDesign(z0, float(mu_q))
-    rf, ln_a = float(rho), math.log1p(-lam_f)
-    apow = math.exp(z0 * ln_a)
-    mu = (rf * -math.expm1((z0 + 2) * ln_a) - lam_f * apow * (1.0 - lam_f)) / (
-        lam_f * apow * (lam_f + rf * (1.0 - lam_f))
-    )
-    return OnlineDesign(z0, min(max(mu, 0.0), 1.0))
+    ch, name = channel_of(channel, lam, "design_online")
+    if ratio is None:
+        raise TypeError("design_online() missing ratio")
+    if not is_paper_channel(ch):
+        return OnlineDesign(*design_under_channel(ch, as_ratio("ratio", ratio)))
+    given = lam if lam is not None else channel  # a number as given: a Fraction stays exact
+    lam_v = given if isinstance(given, (int, float, Fraction)) else ch.low[0]
+    return OnlineDesign(*design_paper(lam_v, ratio, name))
 
 
-#: Largest memory design_online returns, and the largest it settles in exact arithmetic.
-MAX_DESIGN_Z0 = 1_000_000
-EXACT_DESIGN_Z0 = 2_000
-
-
-def _largest_z_float(lam: float, rho: float) -> int:
-    """Largest z >= 1 with f(z, 1) >= rho in floating point (bisection; f falls in z)."""
-    ln_a = math.log1p(-lam)
-
-    def f(z: int) -> float:
-        # 1 - a^(z+1) by expm1: for lam below 1e-16, 1 - lam rounds to 1.
-        return lam * math.exp(z * ln_a) / -math.expm1((z + 1) * ln_a)
-
-    lo, hi = 1, 2
-    while f(hi) >= rho and hi < 2**40:
-        lo, hi = hi, hi * 2
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if f(mid) >= rho:
-            lo = mid
-        else:
-            hi = mid
-    return lo
-
-
-def j_max(system: LinearSystem, lam: float) -> float:
+def j_max(system: LinearSystem, channel: ChannelLike | None = None, *, lam: float | None = None) -> float:
     r"""Cost with every flag-ACK blocked (Sec. IV-C): :math:`\sum_{i\ge0}\lambda a^i\,\mathrm{tr}_i`.
 
-    Computed as :math:`\mathrm{Tr}\,X` with :math:`X = aAXA' + \lambda\bar P + aQ` (a Stein
-    equation solved by doubling), not by truncating the series.
+    On the paper's channel, :math:`\mathrm{Tr}\,X` with :math:`X = aAXA' + \lambda\bar P + aQ` (a
+    Stein equation solved by doubling), not by truncating the series. The sensor then always
+    transmits at low power, so under another channel this is J of the offline pattern ``"0"`` by
+    the exact engine (on ``GilbertElliott(p, q, 1, 0)``,
+    :math:`\frac{q}{p+q}[\mathrm{tr}_0 + p\sum_{t\ge1}(1-q)^{t-1}\mathrm{tr}_t]`).
 
     Parameters
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The channel; a float is the paper's, with arrival probability :math:`\lambda \in (0, 1)`
+        at low power.
+    lam : float, keyword-only, optional
+        The former name of ``channel`` (a float).
 
     Returns
     -------
     float
-        ``math.inf`` when :math:`(1-\lambda)\rho(A)^2 \ge 1`: here ``inf`` means the series
-        diverges (Model note 5: the printed condition :math:`(1-\lambda)\rho(A) < 1` is wrong),
-        whereas the other costs return ``inf`` only for a finite value beyond the double range.
+        ``math.inf`` when the cost diverges: on the paper's channel when
+        :math:`(1-\lambda)\rho(A)^2 \ge 1` (Model note 5: the printed condition
+        :math:`(1-\lambda)\rho(A) < 1` is wrong), by the engine when
+        :math:`\rho(K_0)\rho(A)^2 \ge 1`; the other costs of the paper's channel return ``inf``
+        only for a finite value beyond the double range.
     """
     core = compiled(system)
-    lam = as_probability("lam", lam)
-    return core.j_max(lam)
+    ch, name = channel_of(channel, lam, "j_max")
+    if not is_paper_channel(ch):
+        return pattern_cost(system, ch, [0])
+    return core.j_max(as_probability(name, ch.low[0]))
 
 
 @dataclass(frozen=True, init=False, repr=False)
