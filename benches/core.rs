@@ -23,7 +23,9 @@
 //! * `game/..`: `LinearSystem::simulate_game`, the closed loop with the sensor's count test in it
 //!   (bounds at about 2.6 standard deviations of the attack-free count of a 1000-step window, two
 //!   offline windows after any alarm; offline schedule 1/7), under the attack "first 1 of every
-//!   5" and rate matching (β = 0.2, γ = 0.0365); throughput in simulated steps.
+//!   5" and rate matching (β = 0.2, γ = 0.0365); throughput in simulated steps;
+//! * `markov/..`: `engine::markov::beta_sweep`, every r/t under `GilbertElliott(0.1, 0.1, 1, 0)`
+//!   with the design that meets the budget 1/7 there (z0 = 2, μ = 0.5785), t_max = 60 and 1000.
 //!
 //! Sample counts are criterion's minimum (10) with short measurement windows so that the whole file
 //! runs in a few minutes; the machine is usually shared, so read the numbers as indicative.
@@ -470,6 +472,31 @@ fn bench_engine(c: &mut Criterion) {
     g.finish();
 }
 
+/// The β sweep under a Gilbert-Elliott channel by the Markov renewal.
+fn bench_markov(c: &mut Criterion) {
+    let mut g = c.benchmark_group("markov");
+    let sys = paper_system();
+    let ge = Channel::gilbert_elliott(0.1, 0.1, 1.0, 0.0, 1.0, 1.0).unwrap();
+    let design = OnlineDesign::new(2, 0.5785).unwrap();
+    for t_max in [60u64, 1000] {
+        if t_max > 100 {
+            g.sample_size(10);
+        }
+        g.bench_function(
+            BenchmarkId::new("beta_sweep", format!("t_max={t_max}")),
+            |b| {
+                b.iter(|| {
+                    black_box(
+                        fakeack::engine::markov::beta_sweep(&sys, &ge, design, t_max, None)
+                            .unwrap(),
+                    )
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
 criterion_group!(
     benches,
     bench_pbar,
@@ -479,6 +506,7 @@ criterion_group!(
     bench_montecarlo,
     bench_automaton,
     bench_game,
-    bench_engine
+    bench_engine,
+    bench_markov
 );
 criterion_main!(benches);

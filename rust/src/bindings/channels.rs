@@ -1,5 +1,5 @@
 //! For `fakeack.attacks` under a Markov channel: periodic and mask blocking by the renewal form
-//! with the channel state as a phase (`renewal::markov`), with the GIL released and Ctrl-C
+//! with the channel state as a phase (`engine::markov`), with the GIL released and Ctrl-C
 //! checked.
 
 use numpy::{IntoPyArray, PyArray1};
@@ -7,8 +7,8 @@ use pyo3::prelude::*;
 
 use super::engine::run;
 use super::model::PySystem;
+use crate::engine::markov;
 use crate::engine::Channel;
-use crate::renewal::markov;
 use crate::OnlineDesign;
 
 /// A channel as (P, low, high).

@@ -1,5 +1,5 @@
-//! Periodic and mask blocking under a Markov channel, by renewal over the flag-ACK counter with
-//! the channel state as a phase (a Markov renewal process).
+//! The engine's fast path for periodic and mask blocking under a Markov channel: renewal over the
+//! flag-ACK counter with the channel state as a phase (a Markov renewal process).
 //!
 //! A *fresh start* is an arrival: the holding time τ is 0, the detector's memory restarts and
 //! the next step uses low power (no flag-ACK is sent on an arrival). Its phase c is the channel
@@ -33,7 +33,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
-use crate::engine::channel::{dense_gth, Channel};
+use crate::engine::channel::{closed_class, dense_gth, Channel};
 use crate::error::{Error, Result};
 use crate::renewal::sweep::{farey, Sweep};
 use crate::schedule::OnlineDesign;
@@ -341,7 +341,7 @@ fn ratio(x: &[f64], r: &DVector<f64>, l: &DVector<f64>) -> f64 {
 fn stationary(pi: &DMatrix<f64>) -> Result<Vec<f64>> {
     let k = pi.nrows();
     let flat: Vec<f64> = (0..k * k).map(|x| pi[(x / k, x % k)]).collect();
-    let closed = crate::engine::channel::closed_class(&flat, k).map_err(|_| {
+    let closed = closed_class(&flat, k).map_err(|_| {
         Error::invalid(
             "channel",
             "the phase chain of one period has several closed classes",

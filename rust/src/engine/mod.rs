@@ -33,7 +33,9 @@
 
 pub mod attacker;
 pub mod channel;
+mod graph;
 pub mod linsolve;
+pub mod markov;
 pub mod product;
 mod solve;
 #[cfg(test)]
@@ -199,7 +201,7 @@ impl Engine {
         }
         let automaton = attacker.compile()?;
         let product = product::explore(channel, schedule, &automaton, max_states)?;
-        solve::check_arrivals(&product, attacker.arg())?;
+        graph::check_arrivals(&product, attacker.arg())?;
         Ok(Engine {
             product,
             arg: attacker.arg(),

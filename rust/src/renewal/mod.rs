@@ -3,12 +3,11 @@
 //! ratio of sums over one cycle and never builds a chain. One file per attack family:
 //! [`periodic`] (any periodic blocking mask and memory mix μ), [`independent`] (blocking each
 //! flag-ACK independently, and forging), [`sweep`] (every r/t at once and the threshold β̄) and
-//! [`rates`] (the flag-ACK rates all of them imply); [`markov`] is periodic and mask blocking
-//! under a Markov channel, the channel state a phase of the renewal. The explicit chains of the `chain` module
+//! [`rates`] (the flag-ACK rates all of them imply). Periodic and mask blocking under a Markov
+//! channel, the channel state a phase of the renewal, is the engine's fast path `engine::markov`. The explicit chains of the `chain` module
 //! are the independent check of these forms.
 
 pub mod independent;
-pub mod markov;
 pub mod periodic;
 pub mod rates;
 pub mod sweep;

@@ -153,7 +153,7 @@ fn bad_input_is_refused() {
 }
 
 /// Time of the sweep the issue targets (< 1 s at t_max = 1000):
-/// `cargo test --release --lib renewal::markov::tests::speed -- --ignored --nocapture`.
+/// `cargo test --release --lib engine::markov::tests::speed -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn speed() {
