@@ -248,7 +248,7 @@ def test_consecutive_is_worst_compares_the_two_costs(paper, monkeypatch):
     is exercised with a stub core that reports a worse mask.
 
     Kills: consecutive_is_worst constant True, or the comparison reversed."""
-    import fakeack.attacks.threshold as th
+    import fakeack.attacks.masks as th
 
     class Stub:
         def __init__(self, j, jc):

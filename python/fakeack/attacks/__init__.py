@@ -20,19 +20,17 @@ from .kinds import (
     RandomBlocking,
     as_attack,
 )
+from .masks import MaskSearch, j_attack_pattern, worst_mask
 from .random import RandomSweep, beta_bar_random, random_blocking_sweep, rate_matching_attack
 from .rates import energy_per_step, high_power_rate, online_high_power_rate
 from .threshold import (
     BetaBar,
     BetaSweep,
     Decision,
-    MaskSearch,
     beta_bar,
     beta_sweep,
     choose_schedule,
     j_attack_limit,
-    j_attack_pattern,
-    worst_mask,
 )
 
 __all__ = [

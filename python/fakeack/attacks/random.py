@@ -15,9 +15,11 @@ from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_fraction, as_int, as_probability
 from ..detection.flags import any_system
 from ..engine.scenario import Scenario
-from ..model.schedules import OnlineDesign, check_online
+from ..model.channels import Channel, ChannelLike, channel_argument, is_paper_channel
+from ..model.schedules import OnlineDesign, check_online, j_offline
 from ..model.system import LinearSystem, compiled
-from .kinds import FlagInjection, RandomBlocking
+from ._args import required
+from .kinds import Attack, FlagInjection, RandomBlocking
 from .threshold import _problem
 
 __all__ = [
@@ -29,7 +31,13 @@ __all__ = [
 
 
 def beta_bar_random(
-    system: LinearSystem, lam: float, ratio: RatioLike, z0: int | None = None, mu: float | None = None
+    system: LinearSystem,
+    channel: ChannelLike | None = None,
+    ratio: RatioLike | None = None,
+    z0: int | None = None,
+    mu: float | None = None,
+    *,
+    lam: float | None = None,
 ) -> float:
     r"""The threshold against independent blocking: the root of
     :math:`J(\mathrm{RandomBlocking}(\beta)) = J_{\mathrm{off}}`.
@@ -41,8 +49,11 @@ def beta_bar_random(
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The packet channel (:class:`fakeack.GilbertElliott`, :class:`fakeack.MarkovChannel`,
+        ...) or the paper's low-power arrival probability :math:`\lambda`; ``lam=`` (its old
+        name) is the same as a float. Under a Markov channel every J and rate comes from the
+        exact engine (:class:`fakeack.Scenario`).
     ratio : Fraction
         Energy ratio p/q.
     z0, mu : int and float, optional
@@ -55,8 +66,31 @@ def beta_bar_random(
         blocking every flag does not reach :math:`J_{\mathrm{off}}`.
     """
     core = compiled(system)
-    pb = _problem(lam, ratio, z0, mu)
-    return core.beta_bar_random(pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.design.z0, pb.design.mu)
+    pb = _problem("beta_bar_random", channel, lam, ratio, z0, mu)
+    if pb.lam is not None:
+        return core.beta_bar_random(
+            pb.lam, pb.ratio.numerator, pb.ratio.denominator, pb.design.z0, pb.design.mu
+        )
+    j_off = j_offline(system, pb.channel, pb.ratio)
+
+    def j(b: float) -> float:
+        return Scenario(system, pb.channel, pb.design, RandomBlocking(b)).cost()
+
+    if j(0.0) >= j_off:
+        return 0.0
+    if j(1.0) < j_off:
+        return 1.0
+    # Bisection, not Brent: J may be inf near beta = 1 (past the growth condition).
+    lo, hi = 0.0, 1.0
+    while hi - lo > 4e-16 * hi:
+        mid = 0.5 * (lo + hi)
+        if mid in (lo, hi):
+            break
+        if j(mid) < j_off:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
 
 
 @dataclass(frozen=True)
@@ -72,10 +106,20 @@ class RandomSweep:
     z0: int
     mu: float
     lam: float
+    """The paper's lam, or a Markov channel's mean low-power arrival probability."""
+    channel: Channel | None = None
+    """The channel analysed."""
 
 
 def random_blocking_sweep(
-    system: LinearSystem, lam: float, z0: int, betas: npt.ArrayLike, mu: float = 1.0, gamma: float = 0.0
+    system: LinearSystem,
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    betas: npt.ArrayLike | None = None,
+    mu: float = 1.0,
+    gamma: float = 0.0,
+    *,
+    lam: float | None = None,
 ) -> RandomSweep:
     r"""J under :class:`fakeack.RandomBlocking` at many budgets, sharing the traces.
 
@@ -86,8 +130,11 @@ def random_blocking_sweep(
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The packet channel (:class:`fakeack.GilbertElliott`, :class:`fakeack.MarkovChannel`,
+        ...) or the paper's low-power arrival probability :math:`\lambda`; ``lam=`` (its old
+        name) is the same as a float. Under a Markov channel every J and rate comes from the
+        exact engine (:class:`fakeack.Scenario`).
     z0 : int
         Memory length of the event detector.
     betas : array_like
@@ -99,19 +146,35 @@ def random_blocking_sweep(
         :class:`fakeack.RandomBlocking` block).
     """
     core = compiled(system)
-    lam, design = check_online(lam, z0, mu)
+    ch, name = channel_argument(channel, lam, "random_blocking_sweep")
+    z0 = as_int("z0", required("random_blocking_sweep", "z0", z0), minimum=1)
     g = as_probability("gamma", gamma, closed=True)
-    b = np.asarray(betas, dtype=np.float64)
+    b = np.asarray(required("random_blocking_sweep", "betas", betas), dtype=np.float64)
     if b.ndim != 1 or b.size == 0:
         raise ValueError(f"betas must be a non-empty 1-D array, got shape {b.shape}")
     if not np.all(np.isfinite(b)) or np.any((b < 0) | (b > 1)):
         raise ValueError("betas must lie in [0, 1]")
-    j = core.j_random_sweep(lam, design.z0, design.mu, g, b.tolist())
-    return RandomSweep(b, j, g, design.z0, design.mu, lam)
+    if is_paper_channel(ch):
+        lam_f, design = check_online(float(ch.low[0]), z0, mu)
+        j = core.j_random_sweep(lam_f, design.z0, design.mu, g, b.tolist())
+        return RandomSweep(b, j, g, design.z0, design.mu, lam_f, ch)
+    design = OnlineDesign(z0, as_probability("mu", mu, closed=True))
+
+    def attack(x: float) -> Attack:
+        return FlagInjection(g, RandomBlocking(x)) if g > 0 else RandomBlocking(x)
+
+    j = np.array([Scenario(system, ch, design, attack(float(x))).cost() for x in b])
+    return RandomSweep(b, j, g, design.z0, design.mu, ch.mean_low, ch)
 
 
 def rate_matching_attack(
-    lam: float, z0: int, beta: float | Fraction, mu: float = 1.0, min_gap: int = 1
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    beta: float | Fraction | None = None,
+    mu: float = 1.0,
+    min_gap: int = 1,
+    *,
+    lam: float | None = None,
 ) -> FlagInjection:
     r"""The injection that hides independent blocking from the flag count.
 
@@ -124,8 +187,11 @@ def rate_matching_attack(
 
     Parameters
     ----------
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The packet channel (:class:`fakeack.GilbertElliott`, :class:`fakeack.MarkovChannel`,
+        ...) or the paper's low-power arrival probability :math:`\lambda`; ``lam=`` (its old
+        name) is the same as a float. Under a Markov channel every J and rate comes from the
+        exact engine (:class:`fakeack.Scenario`).
     z0 : int
         Memory length of the event detector.
     beta : float
@@ -149,20 +215,30 @@ def rate_matching_attack(
     >>> abs(high_power_rate(0.5, 2, att) - high_power_rate(0.5, 2)) < 1e-12
     True
     """
-    lam, design = check_online(lam, z0, mu)
+    ch, name = channel_argument(channel, lam, "rate_matching_attack")
+    paper = is_paper_channel(ch)
+    z0_v = required("rate_matching_attack", "z0", z0)
+    if paper:
+        lam_f, design = check_online(float(ch.low[0]), z0_v, mu)
+    else:
+        design = OnlineDesign(as_int("z0", z0_v, minimum=1), as_probability("mu", mu, closed=True))
     z0, mu = design
-    b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
+    beta_v = required("rate_matching_attack", "beta", beta)
+    b = as_probability("beta", float(as_fraction("beta", beta_v)), closed=True)
     gap = as_int("min_gap", min_gap, minimum=1)
-    target = _fakeack.high_power_rate(lam, z0, mu)
+    # Flag-ACK rates do not depend on the system.
+    if paper:
+        target = _fakeack.high_power_rate(lam_f, z0, mu)
+    else:
+        target = Scenario(any_system(), ch, design).flag_rates().delivered
     block = RandomBlocking(b)
 
     def excess(g: float) -> float:
-        if gap > 1:
-            design = OnlineDesign(z0, mu)
-            sc = Scenario(any_system(), lam, design, FlagInjection(g, block, gap))
+        if gap > 1 or not paper:
+            sc = Scenario(any_system(), ch, design, FlagInjection(g, block, gap))
             return sc.flag_rates().delivered - target
         att = _fakeack.Attack.injection(g, _fakeack.Attack.random(b))
-        return _fakeack.flag_rates(lam, z0, mu, att)[1] - target
+        return _fakeack.flag_rates(lam_f, z0, mu, att)[1] - target
 
     if excess(0.0) >= 0.0:  # beta = 0: nothing to hide
         return FlagInjection(0.0, block, gap)

@@ -1,4 +1,9 @@
-"""The attacker threshold: β sweeps, β̄, the sensor's decision, general attack patterns."""
+"""The attacker threshold: β sweeps, β̄, the sensor's decision, general attack patterns.
+
+Every function takes a channel (:mod:`fakeack.model.channels`): the paper's channel keeps its
+i.i.d. renewal forms, a Markov channel goes through :mod:`._markov` (the renewal with the
+channel state as a phase, and the exact engine).
+"""
 
 from __future__ import annotations
 
@@ -8,15 +13,15 @@ from fractions import Fraction
 import numpy as np
 import numpy.typing as npt
 
-from .._internal.types import FloatArray, IntArray, RatioLike
+from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_fraction, as_int, as_probability, as_ratio
-from ..model.schedules import OnlineDesign, design_online
+from ..model.channels import Channel, ChannelLike
+from ..model.schedules import OnlineDesign, design_online, j_offline
 from ..model.system import LinearSystem, compiled
-from .chain import j_attack
-from .kinds import MaskBlocking
+from . import _markov
+from ._args import channel_and_lam, required
 
 __all__ = [
-    "j_attack_pattern",
     "j_attack_limit",
     "BetaSweep",
     "beta_sweep",
@@ -24,8 +29,6 @@ __all__ = [
     "beta_bar",
     "Decision",
     "choose_schedule",
-    "MaskSearch",
-    "worst_mask",
 ]
 
 
@@ -33,40 +36,14 @@ def _t_max(t_max: int) -> int:
     return as_int("t_max", t_max, minimum=2)
 
 
-def j_attack_pattern(
-    system: LinearSystem, lam: float, z0: int, mask: npt.ArrayLike, mu: float = 1.0
-) -> float:
-    r"""Cost under any periodic blocking pattern of the attacker's flag counter.
-
-    Generalises Algorithm 1: ``mask[sigma] == 1`` blocks the flag-ACK counted ``sigma`` in each
-    period of ``len(mask)`` flags (``[1]*r + [0]*(t-r)`` is the paper's "first r of t").
-
-    The renewal form: after each arrival the memory walk flags before the next arrival with
-    probability :math:`u = a^{z_0}(\mu + (1-\mu)a)`; k blocked flags in a row put it in segment k.
-    Balancing the flag rate over counter levels gives
-    :math:`J = \sum_\sigma\sum_k \tilde c_{\sigma-k} W_k / \sum_\sigma\sum_k \tilde c_{\sigma-k} M_k`,
-    where :math:`\tilde c_j = 1-u` if the flag before level j is blocked, else 1, and
-    :math:`W_k` (:math:`M_k`) sums :math:`a^\tau\mathrm{Tr}\,h^\tau(\bar P)` (:math:`a^\tau`) over
-    segment k (README, model notes). Checked against :func:`fakeack.general_attack_chain`.
-
-    Parameters
-    ----------
-    system : LinearSystem
-        The process and sensor.
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
-    z0 : int
-        Memory length.
-    mask : sequence of 0/1
-        One period of the blocking pattern; not all ones (that is :func:`fakeack.j_max`).
-    mu : float, optional
-        Probability of the z0-bit memory at each step.
-    """
-    return j_attack(system, lam, z0, mu=mu, attack=MaskBlocking(mask))
-
-
 def j_attack_limit(
-    system: LinearSystem, lam: float, z0: int, beta: float | Fraction, mu: float = 1.0
+    system: LinearSystem,
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    beta: float | Fraction | None = None,
+    mu: float = 1.0,
+    *,
+    lam: float | None = None,
 ) -> float:
     r"""Cost in the large-period limit :math:`r, t \to \infty`, :math:`r/t \to \beta`.
 
@@ -86,8 +63,10 @@ def j_attack_limit(
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability at low power.
+    channel : Channel or float
+        The packet channel (:class:`fakeack.GilbertElliott`, :class:`fakeack.MarkovChannel`,
+        ...) or the paper's low-power arrival probability :math:`\lambda`; ``lam=`` (its old
+        name) is the same as a float.
     z0 : int
         Memory length.
     beta : float or Fraction
@@ -99,13 +78,21 @@ def j_attack_limit(
     -------
     float
         ``inf`` for :math:`\beta > 0` when :math:`J_{\max}` is infinite.
+
+    Notes
+    -----
+    Under a Markov channel the same mix holds (each regime's time averages converge and a switch
+    costs O(1) per period); the four numbers come from the exact engine, the all-blocked regime as
+    ``fakeack.RandomBlocking(1)``.
     """
-    core = compiled(system)
-    lam = as_probability("lam", lam)
-    z0 = as_int("z0", z0, minimum=1)
+    ch, lam_f = channel_and_lam(channel, lam, "j_attack_limit")
+    z0 = as_int("z0", required("j_attack_limit", "z0", z0), minimum=1)
     mu = as_probability("mu", mu, closed=True)
-    b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
-    return core.j_attack_limit(lam, z0, mu, b)
+    beta_v = required("j_attack_limit", "beta", beta)
+    b = as_probability("beta", float(as_fraction("beta", beta_v)), closed=True)
+    if lam_f is not None:
+        return compiled(system).j_attack_limit(lam_f, z0, mu, b)
+    return _markov.j_limit(_markov.regimes(system, ch, OnlineDesign(z0, mu)), b)
 
 
 @dataclass(frozen=True)
@@ -127,7 +114,10 @@ class BetaSweep:
     z0: int
     mu: float
     lam: float
+    """The paper's lam, or a Markov channel's mean low-power arrival probability."""
     ratio: Fraction
+    channel: Channel | None = None
+    """The channel analysed."""
 
     def __len__(self) -> int:
         return len(self.r)
@@ -148,7 +138,10 @@ class BetaSweep:
             [
                 ("fractions r/t (lowest terms)", len(self)),
                 ("largest period t", int(self.t.max()) if len(self) else None),
-                ("lam, energy ratio", f"{self.lam:g}, {self.ratio}"),
+                (
+                    "channel, energy ratio",
+                    f"{self.channel if self.channel is not None else self.lam}, {self.ratio}",
+                ),
                 ("online design z0, mu", f"{self.z0}, {self.mu:g}"),
                 ("J_online (no attack)", self.j_online),
                 ("J_offline", self.j_offline),
@@ -161,34 +154,47 @@ class BetaSweep:
 
 @dataclass(frozen=True)
 class _Problem:
-    """A validated (lam, ratio) with the online design to analyse."""
+    """A validated (channel, ratio) with the online design to analyse."""
 
-    lam: float
+    channel: Channel
+    lam: float | None
+    """The paper's lam on the paper's channel (its i.i.d. routes), else None."""
     ratio: Fraction
     design: OnlineDesign
 
 
-def _problem(lam: float | Fraction, ratio: RatioLike, z0: int | None, mu: float | None) -> _Problem:
-    """lam and ratio, with the online design given (z0, optional mu) or by design_online."""
-    lam_f = as_probability("lam", lam)
-    r = as_ratio("ratio", ratio)
+def _problem(
+    function: str,
+    channel: object,
+    lam: object,
+    ratio: RatioLike | None,
+    z0: int | None,
+    mu: float | None,
+) -> _Problem:
+    """Channel and ratio, with the online design given (z0, optional mu) or by design_online."""
+    ch, lam_f = channel_and_lam(channel, lam, function)
+    r = as_ratio("ratio", required(function, "ratio", ratio))
     if z0 is None:
         if mu is not None:
             raise TypeError("mu: give z0 with mu (or neither, for fakeack.design_online's design)")
-        design = design_online(lam, r)
+        # The number as given (a Fraction lam keeps the exact design), else the channel.
+        raw = lam if lam is not None else channel
+        exact = lam_f is not None and isinstance(raw, (int, float, Fraction))
+        design = design_online(raw if exact else ch, r)  # type: ignore[arg-type]  # raw: a number
     else:
         design = OnlineDesign(z0, 1.0 if mu is None else mu)
-    return _Problem(lam_f, r, design)
+    return _Problem(ch, lam_f, r, design)
 
 
 def beta_sweep(
     system: LinearSystem,
-    lam: float,
-    ratio: RatioLike,
+    channel: ChannelLike | None = None,
+    ratio: RatioLike | None = None,
     t_max: int = 1000,
     *,
     z0: int | None = None,
     mu: float | None = None,
+    lam: float | None = None,
 ) -> BetaSweep:
     r"""The attacked cost at every :math:`\beta = r/t` in lowest terms, :math:`1 \le r < t \le t_{\max}`.
 
@@ -197,12 +203,21 @@ def beta_sweep(
     once per r; fractions come in increasing order from the Farey sequence. :math:`t_{\max} = 10^4`
     (about :math:`3\cdot10^7` fractions) takes a few seconds.
 
+    Under a Markov channel whose high-power packets always arrive, each period is a cycle of runs
+    of the renewal with the channel state as a phase (:func:`j_attack_pattern`):
+    :math:`\Pi = B_r B_0^{t-1-r}`, so after an :math:`O(t_{\max}^2 K^3)` set-up every fraction
+    costs :math:`O(K^3)` (:math:`t_{\max} = 1000` on a Gilbert-Elliott channel: about 0.1 s).
+    If high-power packets can be lost, each fraction is an exact engine solve
+    (:math:`t_{\max} \le 200`).
+
     Parameters
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability at low power.
+    channel : Channel or float
+        The packet channel (:class:`fakeack.GilbertElliott`, :class:`fakeack.MarkovChannel`,
+        ...) or the paper's low-power arrival probability :math:`\lambda`; ``lam=`` (its old
+        name) is the same as a float.
     ratio : Fraction
         Energy ratio p/q (from :func:`fakeack.energy_ratio`).
     t_max : int, optional
@@ -218,13 +233,18 @@ def beta_sweep(
     BetaSweep
     """
     core = compiled(system)
-    pb = _problem(lam, ratio, z0, mu)
+    pb = _problem("beta_sweep", channel, lam, ratio, z0, mu)
     t_max = _t_max(t_max)
     z0, mu = pb.design
-    rr, tt, beta, j = core.beta_sweep(pb.lam, z0, mu, t_max)
-    joff = core.j_offline(pb.lam, pb.ratio.numerator, pb.ratio.denominator)
-    jon = core.j_online(pb.lam, z0, mu)
-    return BetaSweep(rr, tt, beta, j, joff, jon, z0, mu, pb.lam, pb.ratio)
+    if pb.lam is not None:
+        rr, tt, beta, j = core.beta_sweep(pb.lam, z0, mu, t_max)
+        joff = core.j_offline(pb.lam, pb.ratio.numerator, pb.ratio.denominator)
+        jon = core.j_online(pb.lam, z0, mu)
+        return BetaSweep(rr, tt, beta, j, joff, jon, z0, mu, pb.lam, pb.ratio, pb.channel)
+    rr, tt, beta, j = _markov.sweep(system, pb.channel, pb.design, t_max)
+    joff = j_offline(system, pb.channel, pb.ratio)
+    jon = _markov.regimes(system, pb.channel, pb.design).j_on
+    return BetaSweep(rr, tt, beta, j, joff, jon, z0, mu, pb.channel.mean_low, pb.ratio, pb.channel)
 
 
 @dataclass(frozen=True)
@@ -262,12 +282,13 @@ class BetaBar:
 
 def beta_bar(
     system: LinearSystem,
-    lam: float,
-    ratio: RatioLike,
+    channel: ChannelLike | None = None,
+    ratio: RatioLike | None = None,
     t_max: int = 60,
     *,
     z0: int | None = None,
     mu: float | None = None,
+    lam: float | None = None,
 ) -> BetaBar:
     r"""The threshold :math:`\bar\beta` above which the sensor should drop ACKs (Sec. IV-C).
 
@@ -284,12 +305,20 @@ def beta_bar(
       :math:`L = (J_{\max} - J_{\mathrm{off}})/f_{\mathrm{blk}}`. It is the threshold against the
       worst attacker with budget β, and the one :func:`choose_schedule` uses.
 
+    Under a Markov channel ``finite`` comes from :func:`beta_sweep`'s renewal and ``limit`` from
+    the same closed form with :math:`J_{\mathrm{on}}`, :math:`f_{\mathrm{on}}`,
+    :math:`J_{\max}`, :math:`f_{\mathrm{blk}}` solved by the exact engine and
+    :math:`J_{\mathrm{off}}` of the best offline pattern under that channel
+    (:func:`fakeack.j_offline`).
+
     Parameters
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability at low power.
+    channel : Channel or float
+        The packet channel (:class:`fakeack.GilbertElliott`, :class:`fakeack.MarkovChannel`,
+        ...) or the paper's low-power arrival probability :math:`\lambda`; ``lam=`` (its old
+        name) is the same as a float.
     ratio : Fraction
         Energy ratio p/q.
     t_max : int, optional
@@ -301,14 +330,21 @@ def beta_bar(
         Its memory mix; 1 when ``z0`` is given without it.
     """
     core = compiled(system)
-    pb = _problem(lam, ratio, z0, mu)
+    pb = _problem("beta_bar", channel, lam, ratio, z0, mu)
     t_max = _t_max(t_max)
     z0, mu = pb.design
-    first, limit, joff, jon, jmax = core.beta_bar(
-        pb.lam, pb.ratio.numerator, pb.ratio.denominator, z0, mu, t_max
-    )
-    finite = None if first is None else Fraction(first[0], first[1])
-    return BetaBar(finite, limit, t_max, joff, jon, jmax, z0, mu)
+    if pb.lam is not None:
+        first, limit, joff, jon, jmax = core.beta_bar(
+            pb.lam, pb.ratio.numerator, pb.ratio.denominator, z0, mu, t_max
+        )
+        finite = None if first is None else Fraction(first[0], first[1])
+        return BetaBar(finite, limit, t_max, joff, jon, jmax, z0, mu)
+    joff = j_offline(system, pb.channel, pb.ratio)
+    g = _markov.regimes(system, pb.channel, pb.design)
+    rr, tt, _, j = _markov.sweep(system, pb.channel, pb.design, t_max)
+    above = np.flatnonzero(j >= joff)
+    found = None if above.size == 0 else Fraction(int(rr[above[0]]), int(tt[above[0]]))
+    return BetaBar(found, _markov.beta_limit(g, joff), t_max, joff, g.j_on, g.j_max, z0, mu)
 
 
 @dataclass(frozen=True)
@@ -330,12 +366,13 @@ class Decision:
 
 def choose_schedule(
     system: LinearSystem,
-    lam: float,
-    ratio: RatioLike,
-    beta: float | Fraction,
+    channel: ChannelLike | None = None,
+    ratio: RatioLike | None = None,
+    beta: float | Fraction | None = None,
     *,
     z0: int | None = None,
     mu: float | None = None,
+    lam: float | None = None,
 ) -> Decision:
     r"""Keep the online schedule or switch to the offline one (Sec. IV-C's rule).
 
@@ -351,7 +388,10 @@ def choose_schedule(
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
+    channel : Channel or float
+        The packet channel (:class:`fakeack.GilbertElliott`, :class:`fakeack.MarkovChannel`,
+        ...) or the paper's low-power arrival probability :math:`\lambda`; ``lam=`` (its old
+        name) is the same as a float.
     ratio : Fraction
         Energy ratio p/q.
     beta : float or Fraction
@@ -363,59 +403,17 @@ def choose_schedule(
         Its memory mix; 1 when ``z0`` is given without it.
     """
     core = compiled(system)
-    pb = _problem(lam, ratio, z0, mu)
-    b = as_probability("beta", float(as_fraction("beta", beta)), closed=True)
+    pb = _problem("choose_schedule", channel, lam, ratio, z0, mu)
+    beta_v = required("choose_schedule", "beta", beta)
+    b = as_probability("beta", float(as_fraction("beta", beta_v)), closed=True)
     z0, mu = pb.design
-    online, bb, jatt, joff, jon = core.choose_schedule(
-        pb.lam, pb.ratio.numerator, pb.ratio.denominator, z0, mu, b
-    )
-    return Decision("online" if online else "offline", b, bb, jatt, joff, jon, z0, mu)
-
-
-@dataclass(frozen=True)
-class MaskSearch:
-    """Result of :func:`worst_mask`."""
-
-    mask: IntArray
-    """The most damaging blocking pattern found (0/1, length t)."""
-    j: float
-    j_consecutive: float
-    """Cost of the consecutive pattern (the paper's "first r of t")."""
-    consecutive_is_worst: bool
-
-
-def worst_mask(
-    system: LinearSystem, lam: float, z0: int, t: int, blocked: int, mu: float = 1.0
-) -> MaskSearch:
-    """Exhaustive search for the most damaging mask with ``blocked`` of ``t`` flags blocked.
-
-    Tests whether blocking consecutively, the paper's choice after the optimal-DoS result it cites,
-    is the worst pattern for this system. ``t <= 24`` (all :math:`\\binom{t}{blocked}` masks).
-
-    Parameters
-    ----------
-    system : LinearSystem
-        The process and sensor.
-    lam : float
-        Arrival probability at low power.
-    z0 : int
-        Memory length.
-    t : int
-        Mask length (flag-ACKs per period), at most 24.
-    blocked : int
-        Blocked flag-ACKs per period, ``0 <= blocked < t``.
-    mu : float, optional
-        Probability of the z0-bit memory at each step.
-    """
-    core = compiled(system)
-    lam = as_probability("lam", lam)
-    z0 = as_int("z0", z0, minimum=1)
-    t = as_int("t", t, minimum=1)
-    if t > 24:
-        raise ValueError(f"t must be at most 24 for an exhaustive search, got {t}")
-    blocked = as_int("blocked", blocked, minimum=0)
-    if blocked >= t:
-        raise ValueError(f"blocked must be smaller than t = {t}, got {blocked}")
-    mu = as_probability("mu", mu, closed=True)
-    mask, j, jc = core.worst_mask(lam, z0, mu, t, blocked)
-    return MaskSearch(np.array(mask, dtype=np.int64), j, jc, j <= jc * (1 + 1e-12))
+    if pb.lam is not None:
+        online, bb, jatt, joff, jon = core.choose_schedule(
+            pb.lam, pb.ratio.numerator, pb.ratio.denominator, z0, mu, b
+        )
+        return Decision("online" if online else "offline", b, bb, jatt, joff, jon, z0, mu)
+    joff = j_offline(system, pb.channel, pb.ratio)
+    g = _markov.regimes(system, pb.channel, pb.design)
+    jatt = _markov.j_limit(g, b)
+    choice = "online" if jatt < joff else "offline"
+    return Decision(choice, b, _markov.beta_limit(g, joff), jatt, joff, g.j_on, z0, mu)
