@@ -7,7 +7,6 @@ from typing import TypeVar
 from .._internal.validate import as_probability
 from ..model.channels import Channel, channel_argument, is_paper_channel
 
-
 T = TypeVar("T")
 
 

@@ -9,6 +9,7 @@ exact engine's and mu is found by bisection. :func:`fakeack.design_online` choos
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from fractions import Fraction
 
 from .._internal.types import RatioLike
@@ -90,6 +91,11 @@ def _largest_z_float(lam: float, rho: float) -> int:
     lo, hi = 1, 2
     while f(hi) >= rho and hi < 2**40:
         lo, hi = hi, hi * 2
+    return _last_at_least(f, rho, lo, hi)
+
+
+def _last_at_least(f: Callable[[int], float], rho: float, lo: int, hi: int) -> int:
+    """The largest z in [lo, hi) with f(z) >= rho, for f falling in z, f(lo) >= rho > f(hi)."""
     while hi - lo > 1:
         mid = (lo + hi) // 2
         if f(mid) >= rho:
@@ -139,13 +145,7 @@ def design_under_channel(channel: Channel, ratio: Fraction) -> tuple[int, float]
                 f"than {MAX_CHANNEL_DESIGN_Z0} steps on this channel: no online schedule meets the budget"
             )
         lo, hi = hi, min(2 * hi, MAX_CHANNEL_DESIGN_Z0)
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if f(mid) >= rho:
-            lo = mid
-        else:
-            hi = mid
-    z0 = lo  # f(z0 + 1, 1) < rho <= f(z0, 1)
+    z0 = _last_at_least(f, rho, lo, hi)  # f(z0 + 1, 1) < rho <= f(z0, 1)
     if f(z0) == rho:
         return z0, 1.0
     a, b = 0.0, 1.0
