@@ -11,6 +11,7 @@ from ..attacks.chain import j_attack
 from ..attacks.families import attack_families, other_attacks_table
 from ..attacks.random import beta_bar_random
 from ..attacks.rates import high_power_rate
+from ..model.channels import Channel
 from ..model.schedules import OnlineDesign
 from ..model.system import LinearSystem
 from ..plots import plot_attack_families, save_figure
@@ -48,26 +49,46 @@ def reproduce_lines(
 
 
 def attack_rows(
-    system: LinearSystem, lam: float, ratio: Fraction, online: OnlineDesign, attacks: tuple[Any, ...]
+    system: LinearSystem,
+    lam: float | Channel,
+    ratio: Fraction,
+    online: OnlineDesign,
+    attacks: tuple[Any, ...],
+    iid: tuple[float | Channel, OnlineDesign] | None = None,
 ) -> tuple[list[str], dict[str, Any]]:
-    """Rows for the config's ``[attack] random`` and ``inject`` (J and high-power rate)."""
+    """Rows for the config's ``[attack] random`` and ``inject`` (J and high-power rate).
+
+    ``lam`` is the channel (a float: the paper's). ``iid``, the i.i.d. channel of the same mean
+    and its online schedule, adds a column with J under it.
+    """
     if not attacks:
         return [], {}
     z0, mu = online
     rate0 = high_power_rate(lam, z0, None, mu)
+    iid_head = "" if iid is None else f" {'J (i.i.d.)':>11}"
     lines = [
         f"other attacks (exact; high-power rate = share of steps at high power, {rate0:.6f} without attack):",
-        f"  {'attack':<52} {'J':>10} {'high-power rate':>16}",
+        f"  {'attack':<52} {'J':>10} {'high-power rate':>16}{iid_head}",
     ]
     rows = []
     for att in attacks:
         j = j_attack(system, lam, z0, mu=mu, attack=att)
         rate = high_power_rate(lam, z0, att, mu)
-        lines.append(f"  {str(att):<52} {format_number(j):>10} {rate:>16.6f}")
-        rows.append({"attack": att.label, "j": j, "high_power_rate": rate})
+        row: dict[str, Any] = {"attack": att.label, "j": j, "high_power_rate": rate}
+        line = f"  {str(att):<52} {format_number(j):>10} {rate:>16.6f}"
+        if iid is not None:
+            row["j_iid"] = j_attack(system, iid[0], iid[1].z0, mu=iid[1].mu, attack=att)
+            line += f" {format_number(row['j_iid']):>11}"
+        lines.append(line)
+        rows.append(row)
     bar = beta_bar_random(system, lam, ratio, z0, mu)
-    lines.append(f"  beta-bar against random blocking: {bar:.6f}")
-    return lines, {"rows": rows, "beta_bar_random": bar}
+    doc: dict[str, Any] = {"rows": rows, "beta_bar_random": bar}
+    text = f"  beta-bar against random blocking: {bar:.6f}"
+    if iid is not None:
+        doc["beta_bar_random_iid"] = beta_bar_random(system, iid[0], ratio, iid[1].z0, iid[1].mu)
+        text += f" (i.i.d.: {doc['beta_bar_random_iid']:.6f})"
+    lines.append(text)
+    return lines, doc
 
 
 def family_figure(

@@ -7,6 +7,7 @@ from collections.abc import Callable
 
 from .. import __version__
 from .._internal.validate import MODES, PROTOCOLS
+from ..config.channel import CHANNEL_OPTION
 from ..studies.report import DEFAULT_HORIZON, DEFAULT_OUT, DEFAULT_RUNS, DEFAULT_SEED, DEFAULT_T_MAX
 from . import analyze, game, grid, reproduce, simulate, sweep
 
@@ -57,11 +58,24 @@ def _add_system_flags(parser: argparse.ArgumentParser) -> None:
     group.add_argument(
         "--ratio", default=None, metavar="P/Q", help="energy ratio (Psi-delta)/(Delta-delta), e.g. 1/7"
     )
+    _add_channel_flag(group, "instead of --lam, or of the config's channel")
     group.add_argument(
         "--config",
         metavar="FILE",
         help="take the system, lam and ratio (and the online schedule) "
         "from a TOML config instead (matrices: see 'fakeack analyze --example')",
+    )
+
+
+def _add_channel_flag(group: argparse._ActionsContainer, instead: str) -> None:
+    group.add_argument(
+        "--channel",
+        default=None,
+        metavar="KIND:VALUES",
+        help=f"the packet channel ({instead}): {CHANNEL_OPTION}, "
+        "e.g. ge:0.1,0.1,1,0 (a Gilbert-Elliott channel: P(good->bad), P(bad->good), low-power arrival "
+        "probability when good, when bad; then optionally the high-power ones, default 1); a designed "
+        "online schedule is designed for it",
     )
 
 
@@ -123,8 +137,10 @@ def _add_analyze(sub: argparse._SubParsersAction) -> None:
         "analyze",
         formatter_class=_Formatter,
         help="analyze a system described by a TOML config",
-        description="Costs, Monte Carlo, beta sweep and thresholds for the system in CONFIG.toml. "
-        "'fakeack analyze --example' prints a commented config (the paper's system) to start from.",
+        description="Costs, Monte Carlo, beta sweep and thresholds for the system in CONFIG.toml, under "
+        "its channel ([system] lam, or a [channel] section; a channel with memory is reported beside "
+        "the i.i.d. channel of the same mean). 'fakeack analyze --example' prints a commented config "
+        "(the paper's system) to start from.",
     )
     parser.add_argument(
         "config", nargs="?", metavar="CONFIG.toml", help="the config file ('-' reads standard input)"
@@ -254,6 +270,7 @@ def _add_game(sub: argparse._SubParsersAction) -> None:
     parser.add_argument("--out", metavar="DIR", help="write figures and game.json into DIR")
     parser.add_argument("--no-figures", action="store_true", help="with --out, write game.json only")
     parser.add_argument("--json", action="store_true", help="print JSON instead of the text")
+    _add_channel_flag(parser, "instead of the config's; the game takes i.i.d. channels only for now")
     parser.set_defaults(func=game.run)
 
 

@@ -27,12 +27,19 @@ __all__ = [
 ]
 
 
+#: From this size on, numbers print in exponent form (a diverging J_H, e.g. under a bursty channel).
+_EXPONENT_FROM = 1e12
+
+
 def format_number(x: float | None, digits: int = 6) -> str:
-    """``x`` with ``digits`` decimals; ``-`` for None and ``inf`` for infinity."""
+    """``x`` with ``digits`` decimals (``digits`` significant ones in exponent form from 1e12 on);
+    ``-`` for None and ``inf`` for infinity."""
     if x is None:
         return "-"
     if math.isinf(x):
         return "inf"
+    if abs(x) >= _EXPONENT_FROM:
+        return f"{x:.{digits}e}"
     return f"{x:.{digits}f}"
 
 
@@ -66,14 +73,27 @@ def _table_cells(row: Row, with_mc: bool, with_paper: bool) -> list[str]:
     return cells
 
 
-def results_table(rows: list[Row], horizon: int, with_mc: bool, with_paper: bool) -> list[str]:
-    """The results table: one line per row, columns aligned, ruled above and below."""
+def results_table(
+    rows: list[Row],
+    horizon: int,
+    with_mc: bool,
+    with_paper: bool,
+    extra: tuple[str, dict[str, str]] | None = None,
+) -> list[str]:
+    """The results table: one line per row, columns aligned, ruled above and below.
+
+    ``extra`` is one more column, ``(heading, text by row key)`` (``-`` where a key is missing).
+    """
     head = ["quantity", "analytic", f"exact J_H (H={horizon})"]
     if with_mc:
         head.append("MC J_H +- stderr  ")
     if with_paper:
         head.append("paper")
     body = [_table_cells(row, with_mc, with_paper) for row in rows]
+    if extra is not None:
+        head.append(extra[0])
+        for row, cells in zip(rows, body, strict=True):
+            cells.append(extra[1].get(row.key, "-"))
     widths = [max(len(cells[i]) for cells in [head, *body]) for i in range(len(head))]
 
     def line(cells: list[str]) -> str:

@@ -7,28 +7,52 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..config.analyze import example_text, load_config, loads, parse_config
+from ..config.analyze import ConfigError, example_text, load_config, loads, parse_config
 from ..config.game import GameConfig, parse_game
 from ..game.frontier import FAMILIES, stealthy_frontier
 from ..game.simulate import simulate_game
 from ..game.solve import solve_game
+from ..model.channels import BernoulliChannel
 from ..plots import have_matplotlib, plot_frontiers, plot_game, save_figure
+from ._channel import channel_json, channel_label
+from ._inputs import option_channel
 from ._io import atomic_write, to_json
 
 __all__ = ["run"]
 
 
+#: Why the game refuses a channel that is not the paper's.
+_IID_ONLY = (
+    "takes the paper's i.i.d. channel only for now (fakeack.solve_game, simulate_game and "
+    "stealthy_frontier take lam, not a channel)"
+)
+
+
 def _config(args: argparse.Namespace) -> tuple[Any, GameConfig]:
-    """The config (the shipped example, the paper's system, when none is given) and its game."""
+    """The config (the shipped example, the paper's system, when none is given) and its game.
+
+    ``--channel`` replaces the config's channel; the game needs the paper's (i.i.d.) channel.
+    """
+    channel = option_channel(args)
+    if channel is not None and not isinstance(channel, BernoulliChannel):
+        raise ValueError(f"--channel {args.channel}: fakeack game {_IID_ONLY}; give bernoulli:LAM")
     if not args.config:
-        cfg = parse_config(loads(example_text(), "<example>"), "<example: the paper's system>")
+        source = "<example: the paper's system>"
+        cfg = parse_config(loads(example_text(), "<example>"), source, channel=channel)
     elif args.config == "-":
-        cfg = parse_config(loads(sys.stdin.read(), "<stdin>"), "<stdin>")
+        cfg = parse_config(loads(sys.stdin.read(), "<stdin>"), "<stdin>", channel=channel)
     else:
-        cfg = load_config(args.config)
+        cfg = load_config(args.config, channel=channel)
+    if channel is not None:
+        cfg = replace(cfg, source=f"{cfg.source} with --channel {args.channel}")
+    if not cfg.paper_channel:
+        raise ConfigError(
+            f"config: [channel]: fakeack game {_IID_ONLY}; got {channel_label(cfg.channel_arg)}"
+        )
     return cfg, parse_game(cfg.raw)
 
 
@@ -172,6 +196,8 @@ def run(args: argparse.Namespace) -> int:
     document = {
         "command": "game",
         "config": cfg.source,
+        "lam": cfg.lam,
+        "channel": channel_json(cfg.lam),
         "value": sol.value,
         "j_online": sol.j_online,
         "j_offline": sol.j_offline,

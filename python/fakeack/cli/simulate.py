@@ -10,7 +10,7 @@ from typing import Any
 
 from ..attacks.chain import j_attack
 from ..attacks.kinds import Attack, FlagInjection, MaskBlocking, PeriodicBlocking, RandomBlocking, as_attack
-from ..config.analyze import MonteCarloConfig
+from ..model.offline import offline_search
 from ..model.schedules import (
     OfflineSchedule,
     OnlineDesign,
@@ -20,11 +20,12 @@ from ..model.schedules import (
     j_online,
 )
 from ..montecarlo.curves import TraceCurve, expected_trace_curve
-from ..montecarlo.protocol import SimulationResult
-from ..studies.report import FLAG_SIGMAS, Row, run_monte_carlo
+from ..montecarlo.protocol import SimulationResult, simulate
+from ..studies.report import FLAG_SIGMAS, Row
+from ._channel import channel_json, channel_label, channel_text
 from ._inputs import SystemInputs, resolve_system
 from ._io import emit, to_json
-from ._report import format_number, system_text
+from ._report import format_number, paragraph, system_text
 
 __all__ = ["run"]
 
@@ -58,17 +59,27 @@ def _online_design(args: argparse.Namespace, inputs: SystemInputs) -> OnlineDesi
     cfg = inputs.config
     if cfg is not None and not cfg.designed:
         return cfg.online
-    return design_online(inputs.lam, inputs.ratio)
+    return design_online(inputs.channel_arg, inputs.ratio)
+
+
+def _offline(inputs: SystemInputs) -> tuple[OfflineSchedule, float]:
+    """The offline schedule of the budget and its J: Theorem 3.1's on the paper's channel, else
+    the best pattern of :func:`fakeack.offline_search` under the channel."""
+    if inputs.channel is None:
+        return OfflineSchedule(inputs.ratio), j_offline(inputs.system, inputs.lam, inputs.ratio)
+    search = offline_search(inputs.system, inputs.channel, inputs.ratio)
+    return OfflineSchedule(pattern="".join(str(int(b)) for b in search.pattern)), search.j
 
 
 def _plan(args: argparse.Namespace, inputs: SystemInputs, attack: Attack | None) -> _Plan:
-    s, lam = inputs.system, inputs.lam
+    s, lam = inputs.system, inputs.channel_arg
     if args.schedule == "offline":
         if args.z0 is not None or args.mu is not None:
             raise ValueError("--z0 and --mu apply to the online schedule only")
         if attack is not None:
             raise ValueError("--attack: an offline schedule ignores ACKs, so an attack has no effect")
-        return _Plan(OfflineSchedule(inputs.ratio), None, j_offline(s, lam, inputs.ratio))
+        offline, j = _offline(inputs)
+        return _Plan(offline, None, j)
     z0, mu = _online_design(args, inputs)
     schedule = OnlineSchedule(z0, mu)
     if attack is None:
@@ -99,7 +110,8 @@ def _document(outcome: _Outcome) -> dict[str, Any]:
     return {
         "command": "simulate",
         "system": system_text(outcome.inputs.system),
-        "lam": outcome.inputs.lam,
+        "lam": outcome.inputs.lam if outcome.inputs.channel is None else None,
+        "channel": channel_json(outcome.inputs.channel_arg),
         "ratio": str(outcome.inputs.ratio),
         "schedule": res.schedule,
         "attack": None if attack is None else attack.label,
@@ -139,10 +151,11 @@ def _text(outcome: _Outcome) -> str:
     res, row, attack = outcome.result, outcome.row, outcome.plan.attack
     what = _attack_text(attack)
     check = f"; more than {FLAG_SIGMAS:g}: check!)" if row.flagged else ")"
+    inputs = outcome.inputs
+    channel = f"lam={inputs.lam:g}" if inputs.channel is None else f"channel {channel_text(inputs.channel)}"
     lines = [
         f"fakeack simulate: {res.schedule}, {what}",
-        f"  system {system_text(outcome.inputs.system)}; lam={outcome.inputs.lam:g}; "
-        f"energy ratio {outcome.inputs.ratio}",
+        *paragraph(f"  system {system_text(inputs.system)}; {channel}; energy ratio {inputs.ratio}"),
         f"  {res.runs} runs x {res.horizon} steps, seed {res.seed}, {res.mode} mode, protocol {res.protocol}",
         "",
         f"  J_H Monte Carlo   {res.j:.6f} +- {res.stderr:.6f}",
@@ -167,11 +180,25 @@ def run(args: argparse.Namespace) -> int:
     inputs = resolve_system(args)
     if args.runs < 2:
         raise ValueError(f"--runs must be at least 2 (the standard error needs two runs), got {args.runs}")
+    if inputs.channel is not None and args.mode == "state":
+        raise ValueError(
+            "--mode state needs the paper's channel (one state, every high-power packet arrives); "
+            f"under {channel_label(inputs.channel)} use --mode covariance"
+        )
     attack = as_attack(args.attack, "--attack")
     plan = _plan(args, inputs, attack)
-    mc = MonteCarloConfig(args.runs, args.horizon, args.seed, args.mode, args.protocol)
-    result = run_monte_carlo(inputs.system, inputs.lam, plan.schedule, mc, plan.attack)
-    exact = expected_trace_curve(inputs.system, inputs.lam, plan.schedule, args.horizon, plan.attack)
+    result = simulate(
+        inputs.system,
+        inputs.channel_arg,
+        plan.schedule,
+        horizon=args.horizon,
+        runs=args.runs,
+        seed=args.seed,
+        attack=plan.attack,
+        mode=args.mode,
+        protocol=args.protocol,
+    )
+    exact = expected_trace_curve(inputs.system, inputs.channel_arg, plan.schedule, args.horizon, plan.attack)
     row = Row("j", "J_H", mc=result.j, mc_stderr=result.stderr, exact_h=float(exact.j_k[-1]))
     outcome = _Outcome(inputs, plan, result, exact, row)
     if args.csv:

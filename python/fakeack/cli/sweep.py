@@ -9,8 +9,9 @@ from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
-from ..attacks.threshold import BetaBar, BetaSweep, j_attack_limit
-from ..studies.report import DEFAULT_T_MAX, sweep_and_thresholds
+from ..attacks.threshold import BetaBar, BetaSweep, beta_bar, beta_sweep, j_attack_limit
+from ..studies.report import DEFAULT_T_MAX
+from ._channel import channel_json, channel_text
 from ._inputs import SystemInputs, resolve_system
 from ._io import emit, to_json
 from ._report import format_number, paragraph, system_text
@@ -47,10 +48,12 @@ class _Result:
 
 
 def _compute(inputs: SystemInputs, t_max: int) -> _Result:
-    s, lam, ratio, cfg = inputs.system, inputs.lam, inputs.ratio, inputs.config
+    s, lam, ratio, cfg = inputs.system, inputs.channel_arg, inputs.ratio, inputs.config
     designed = cfg is None or cfg.designed
-    given = None if cfg is None or cfg.designed else cfg.online  # None: design_online's design
-    sweep, bar = sweep_and_thresholds(s, lam, ratio, given, t_max)
+    # None: design_online's design under the channel.
+    given_z0, given_mu = (None, None) if cfg is None or cfg.designed else cfg.online
+    sweep = beta_sweep(s, lam, ratio, t_max, z0=given_z0, mu=given_mu)
+    bar = beta_bar(s, lam, ratio, t_max, z0=given_z0, mu=given_mu)
     z0, mu = sweep.z0, sweep.mu
     points = []
     for r, t, beta, j in zip(sweep.r, sweep.t, sweep.beta, sweep.j_attack, strict=True):
@@ -71,10 +74,12 @@ def _csv(result: _Result) -> str:
 
 def _summary(result: _Result) -> dict[str, Any]:
     sweep, bar, finite = result.sweep, result.bar, result.bar.finite
+    inputs = result.inputs
     return {
-        "system": system_text(result.inputs.system),
-        "lam": result.inputs.lam,
-        "ratio": str(result.inputs.ratio),
+        "system": system_text(inputs.system),
+        "lam": inputs.lam if inputs.channel is None else None,
+        "channel": channel_json(inputs.channel_arg),
+        "ratio": str(inputs.ratio),
         "z0": result.z0,
         "mu": result.mu,
         "designed": result.designed,
@@ -99,9 +104,14 @@ def _json(result: _Result) -> str:
 def _table(result: _Result) -> str:
     sweep, bar, lam, ratio = result.sweep, result.bar, result.inputs.lam, result.inputs.ratio
     finite = "none" if bar.finite is None else f"{bar.finite} = {float(bar.finite):.6f}"
+    channel = (
+        f"lam={lam:g}" if result.inputs.channel is None else f"channel {channel_text(result.inputs.channel)}"
+    )
     lines = [
-        f"fakeack sweep: {system_text(result.inputs.system)}; lam={lam:g}; energy ratio {ratio}; "
-        f"online z0={result.z0}, mu={result.mu:.6g}",
+        *paragraph(
+            f"fakeack sweep: {system_text(result.inputs.system)}; {channel}; energy ratio {ratio}; "
+            f"online z0={result.z0}, mu={result.mu:.6g}"
+        ),
         f"J_offline = {sweep.j_offline:.6f}   J_online = {sweep.j_online:.6f}   "
         f"J_max = {format_number(bar.j_max)}",
         f"beta-bar: t<={result.t_max}: {finite}; large-period limit: {bar.limit:.6f}",

@@ -1,5 +1,6 @@
 """TOML configurations of the command line: ``fakeack analyze`` (this package's names), ``fakeack
-game`` (:mod:`fakeack.config.game`) and ``fakeack grid`` (:mod:`fakeack.config.grid`)."""
+game`` (:mod:`fakeack.config.game`) and ``fakeack grid`` (:mod:`fakeack.config.grid`); the
+``[channel]`` section and ``--channel`` are read by :mod:`fakeack.config.channel`."""
 
 from .analyze import (
     Config,

@@ -6,6 +6,8 @@ keys are errors, so a typo never passes silently. ``fakeack analyze --example`` 
 example (:func:`example_text`), which is the paper's system of Sec. V::
 
     [system]            # A, C, Q, R: scalars or nested lists (rows); lam: arrival probability
+    [channel]           # instead of [system] lam: kind = "bernoulli", "gilbert-elliott" or
+                        # "markov" and its keys (fakeack.config.channel)
     [energy]            # ratio = "p/q", or Psi, Delta, delta (numbers or "p/q" strings)
     [online]            # design = true, or z0 (and mu, default 1)
     [attack]            # betas = ["1/5", "2/3"]; random = [0.2]; inject = [0.05];
@@ -30,8 +32,10 @@ import numpy as np
 
 from .._internal.validate import MODES, PROTOCOLS, as_ratio
 from ..attacks.kinds import FlagInjection, PeriodicBlocking, RandomBlocking, as_attack
+from ..model.channels import Channel
 from ..model.schedules import OnlineDesign, design_online, energy_ratio
 from ..model.system import LinearSystem
+from .channel import CHANNEL_SECTION, system_channel, with_channel
 from .game import GAME_SECTION
 from .values import (
     ConfigError,
@@ -68,7 +72,10 @@ __all__ = [
 
 
 _SECTIONS: dict[str, Section] = {
-    "system": Section(("A", "C", "Q", "R", "lam"), "A, C, Q, R and lam are required"),
+    "system": Section(
+        ("A", "C", "Q", "R", "lam"), "A, C, Q, R and lam (or a [channel] section) are required"
+    ),
+    "channel": CHANNEL_SECTION,  # read by fakeack.config.channel
     "energy": Section(("ratio", "Psi", "Delta", "delta"), 'give ratio = "p/q", or Psi, Delta, delta'),
     "online": Section(("design", "z0", "mu")),
     "attack": Section(("betas", "random", "inject", "sweep")),
@@ -124,13 +131,6 @@ def _system_matrices(table: dict[str, Any]) -> dict[str, np.ndarray]:
     return matrices
 
 
-def _lam(table: dict[str, Any]) -> float:
-    lam = read_real("system", "lam", require("system", table, "lam", "arrival probability at low power"))
-    if not 0 < lam < 1:
-        raise config_error("system", "lam", f"must lie in (0, 1), got {lam}")
-    return lam
-
-
 def _linear_system(matrices: dict[str, np.ndarray]) -> LinearSystem:
     try:
         return LinearSystem(*(matrices[k] for k in _MATRIX_KEYS))
@@ -174,8 +174,9 @@ def _energy_ratio(table: dict[str, Any]) -> Fraction:
 # [online]
 
 
-def _online(table: dict[str, Any], lam: float, ratio: Fraction) -> tuple[OnlineDesign, bool]:
-    """``(z0, mu)`` and whether it is ``design_online``'s (``mu`` defaults to 1 with ``z0``)."""
+def _online(table: dict[str, Any], lam: float | Channel, ratio: Fraction) -> tuple[OnlineDesign, bool]:
+    """``(z0, mu)`` and whether it is ``design_online``'s under the channel ``lam`` (``mu``
+    defaults to 1 with ``z0``)."""
     design = table.get("design", "z0" not in table and "mu" not in table)
     if not isinstance(design, bool):
         raise config_error("online", "design", f"must be true or false, got {toml_kind(design)} {design!r}")
@@ -286,7 +287,7 @@ _MONTECARLO_READERS: dict[str, Callable[[str, str, Any], Any]] = {
 }
 
 
-def _montecarlo(data: dict[str, Any]) -> MonteCarloConfig | None:
+def _montecarlo(data: dict[str, Any], channel: Channel | None) -> MonteCarloConfig | None:
     """The Monte Carlo settings, or None when the section is absent (no Monte Carlo)."""
     if "montecarlo" not in data:
         return None
@@ -294,6 +295,14 @@ def _montecarlo(data: dict[str, Any]) -> MonteCarloConfig | None:
     given = {
         key: read("montecarlo", key, table[key]) for key, read in _MONTECARLO_READERS.items() if key in table
     }
+    if channel is not None and given.get("mode") == "state":
+        # fakeack.simulate simulates the noise and the estimator on the paper's channel only.
+        raise config_error(
+            "montecarlo",
+            "mode",
+            'must be "covariance" with this [channel]: state mode needs the paper\'s channel '
+            "(one state, every high-power packet arrives)",
+        )
     return MonteCarloConfig(**given)
 
 
@@ -306,7 +315,9 @@ class Config:
     system : LinearSystem
         The process and sensor (``[system]`` A, C, Q, R).
     lam : float
-        Arrival probability at low power.
+        Arrival probability at low power: ``[system] lam``, or the ``lam`` of a ``[channel]`` of
+        kind ``"bernoulli"``. For any other channel its long-run mean (the ``lam`` of the i.i.d.
+        channel of the same mean); the analysis then uses :attr:`channel`.
     ratio : fractions.Fraction
         Energy ratio p/q (``[energy]``).
     online : OnlineDesign
@@ -321,6 +332,9 @@ class Config:
         ``[attack.sweep] t_max``; None skips the sweep.
     montecarlo : MonteCarloConfig or None
         None when the section is absent.
+    channel : Channel or None
+        The ``[channel]`` when it is not the paper's (Gilbert-Elliott, Markov); None for the
+        paper's channel with :attr:`lam`. :attr:`channel_arg` is what the analysis takes.
     source : str
         Where the config came from (file name or ``"<string>"``).
     """
@@ -334,11 +348,23 @@ class Config:
     other_attacks: tuple[RandomBlocking | FlagInjection, ...] = ()
     sweep_t_max: int | None = None
     montecarlo: MonteCarloConfig | None = None
+    channel: Channel | None = None
     source: str = "<string>"
     raw: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
+    @property
+    def channel_arg(self) -> float | Channel:
+        """The channel as the analysis functions take it: :attr:`lam` (a float, the paper's
+        channel) unless :attr:`channel` is set."""
+        return self.lam if self.channel is None else self.channel
 
-def parse_config(data: dict[str, Any], source: str = "<string>") -> Config:
+    @property
+    def paper_channel(self) -> bool:
+        """Whether the channel is the paper's (i.i.d. losses, high power always arrives)."""
+        return self.channel is None
+
+
+def parse_config(data: dict[str, Any], source: str = "<string>", *, channel: Channel | None = None) -> Config:
     """Validate a TOML document (already parsed into a dict) as a ``fakeack analyze`` config.
 
     Parameters
@@ -347,6 +373,9 @@ def parse_config(data: dict[str, Any], source: str = "<string>") -> Config:
         The parsed TOML.
     source : str, optional
         Name for messages and :attr:`Config.source`.
+    channel : Channel, keyword-only, optional
+        Use this channel instead of the config's ``[system] lam`` or ``[channel]``
+        (:func:`fakeack.config.channel.with_channel`; the command line's ``--channel``).
 
     Returns
     -------
@@ -357,13 +386,15 @@ def parse_config(data: dict[str, Any], source: str = "<string>") -> Config:
     ConfigError
         The first problem found, naming its section and key.
     """
+    if channel is not None:
+        data = with_channel(data, channel)
     _check_sections(data)
     system_table = _section(data, "system")
     matrices = _system_matrices(system_table)
-    lam = _lam(system_table)
+    lam, channel = system_channel(data, system_table)
     system = _linear_system(matrices)
     ratio = _energy_ratio(_section(data, "energy"))
-    online, designed = _online(_section(data, "online"), lam, ratio)
+    online, designed = _online(_section(data, "online"), lam if channel is None else channel, ratio)
     attack_table = _section(data, "attack")
     return Config(
         system=system,
@@ -375,19 +406,22 @@ def parse_config(data: dict[str, Any], source: str = "<string>") -> Config:
         other_attacks=_probabilities(attack_table, "random", RandomBlocking)
         + _probabilities(attack_table, "inject", FlagInjection),
         sweep_t_max=_sweep_t_max(attack_table),
-        montecarlo=_montecarlo(data),
+        montecarlo=_montecarlo(data, channel),
+        channel=channel,
         source=source,
         raw=data,
     )
 
 
-def load_config(path: str | Path) -> Config:
+def load_config(path: str | Path, *, channel: Channel | None = None) -> Config:
     """Read and validate a TOML config file.
 
     Parameters
     ----------
     path : str or pathlib.Path
         The file.
+    channel : Channel, keyword-only, optional
+        Use this channel instead of the config's (see :func:`parse_config`).
 
     Returns
     -------
@@ -405,7 +439,7 @@ def load_config(path: str | Path) -> Config:
         raise ConfigError(f"config: cannot read {str(p)!r}: {exc.strerror or exc}") from None
     except UnicodeDecodeError as exc:
         raise ConfigError(f"config: {str(p)!r} is not UTF-8 text ({exc.reason})") from None
-    return parse_config(loads(text, str(p)), str(p))
+    return parse_config(loads(text, str(p)), str(p), channel=channel)
 
 
 def loads(text: str, source: str = "<string>") -> dict[str, Any]:
