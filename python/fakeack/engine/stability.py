@@ -220,7 +220,7 @@ def stability_region(
         Anything :class:`fakeack.Scenario` takes (online schedules only).
     p, q : array_like, keyword-only, optional
         Strictly increasing grids of probabilities in [0, 1] (a scalar is a grid of one point);
-        by default :data:`DEFAULT_GRID`, 50 points 0.02, 0.04, ..., 1 each. The point
+        by default ``fakeack.engine.DEFAULT_GRID``, 50 points 0.02, 0.04, ..., 1 each. The point
         ``p = q = 0`` is no channel: it is skipped and masked (see :class:`StabilityRegion`).
     lam_good, lam_bad : float, keyword-only, optional
         Low-power arrival probabilities in the good and the bad state (default 1 and 0).

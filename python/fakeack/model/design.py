@@ -115,13 +115,13 @@ def design_under_channel(channel: Channel, ratio: Fraction) -> tuple[int, float]
     intermediate value theorem once :math:`f(1,1) \ge \rho > f(z,1)`, and it is the only one where
     f falls in z). Then :math:`\mu = 1` if :math:`f(z_0, 1) = \rho`, else the root of
     :math:`f(z_0, \mu) = \rho` by bisection on :math:`[0, 1]` (:math:`f(z_0, 0) < \rho \le f(z_0, 1)`)
-    until the bracket is :data:`MU_TOL` wide; of its two ends, the one whose rate is nearer.
+    until the bracket is ``fakeack.model.design.MU_TOL`` wide; of its two ends, the one whose rate is nearer.
 
     Raises
     ------
     ValueError
         Naming ``ratio`` when it exceeds :math:`f(1, 1)` (no online schedule spends that much)
-        or needs a memory beyond :data:`MAX_CHANNEL_DESIGN_Z0`.
+        or needs a memory beyond ``MAX_CHANNEL_DESIGN_Z0``.
     """
     rho = float(ratio)
     rates: dict[int, float] = {}

@@ -6,7 +6,7 @@ steps in q, the evenly spread one (:func:`fakeack.offline_schedule`) has the lea
 channel with memory it need not: on the cyclic channel of the example in :func:`offline_search`
 ``101000`` beats ``100``. :func:`offline_search` looks for the best periodic pattern with high
 fraction p/q and period at most a bound, evaluating each candidate with the exact engine
-(:mod:`fakeack.model.exact`, the computation of :class:`fakeack.Scenario`).
+(``fakeack.model.exact``, the computation of :class:`fakeack.Scenario`).
 
 **What is searched.** A periodic 0/1 sequence with high fraction p/q (lowest terms) and period
 L has ``L p / q`` ones, so q divides its least period: the candidates are the patterns of length
@@ -34,7 +34,7 @@ it is not so (the tests show a pattern and its reversal with different J), and b
 alone exceed it; the default ``max_period`` stops before) are searched locally: steepest
 descent from the best pattern so far (repeated to the period when it divides it, else the
 evenly spread pattern), moving one high-power step one place left or right while that lowers J,
-at most :data:`MAX_DESCENT_ROUNDS` rounds. The result says which periods were exhaustive
+at most ``fakeack.model.offline.MAX_DESCENT_ROUNDS`` rounds. The result says which periods were exhaustive
 (``exhaustive_period``).
 """
 
@@ -190,7 +190,7 @@ class OfflineSearch:
     j_even: float
     """J of the evenly spread pattern :func:`fakeack.offline_schedule` ``(ratio)``."""
     even_is_optimal: bool
-    """No searched pattern has a J lower than ``j_even`` by more than :data:`TIE_RTOL`."""
+    """No searched pattern has a J lower than ``j_even`` by more than ``fakeack.model.offline.TIE_RTOL``."""
     max_period: int
     """The largest period searched, a multiple of q."""
     exhaustive_period: int
@@ -289,9 +289,9 @@ def offline_search(
     max_period : int, keyword-only, optional
         Longest period searched (at least q; the periods are its multiples of q). Default: the
         longest that keeps the search exhaustive within ``max_patterns`` necklaces of total
-        length at most :data:`STEPS_PER_PATTERN` times ``max_patterns`` steps, at least q.
+        length at most ``fakeack.model.offline.STEPS_PER_PATTERN`` times ``max_patterns`` steps, at least q.
     max_patterns : int, keyword-only, optional
-        Necklaces evaluated exhaustively at most (default :data:`DEFAULT_MAX_PATTERNS`).
+        Necklaces evaluated exhaustively at most (default ``fakeack.model.offline.DEFAULT_MAX_PATTERNS``).
 
     Returns
     -------

@@ -323,7 +323,7 @@ def design_online(
     exact (:class:`fractions.Fraction`; a float ``lam`` is taken at its exact binary value unless
     a short fraction rounds to it). Under another channel f is the exact engine's rate, not
     linear-fractional in :math:`\mu`, and :math:`\mu` is the root of :math:`f(z_0, \mu) = p/q`
-    by bracketing bisection to a width of 1e-15 (:func:`fakeack.model.design.design_under_channel`).
+    by bracketing bisection to a width of 1e-15 (``fakeack.model.design.design_under_channel``).
 
     Parameters
     ----------

@@ -1,7 +1,7 @@
 r"""Stability regions in the (p, q) plane of a Gilbert-Elliott channel (:func:`plot_stability_region`).
 
 Each panel shows the engine's stability index :math:`\rho(K_0)\rho(A)^2` of one
-:class:`fakeack.engine.stability.StabilityRegion` as a colour map (blue: J finite, red: J
+:class:`fakeack.StabilityRegion` as a colour map (blue: J finite, red: J
 infinite, white at the boundary 1), the boundary index = 1 as a black line and the i.i.d.
 channels p + q = 1 as a dashed line. Points that were not evaluated (p = q = 0) are grey. It
 follows the rule of :mod:`fakeack.plots`: an optional ``ax``, a new Figure on an Agg canvas
@@ -78,7 +78,7 @@ def plot_stability_region(
     Parameters
     ----------
     region : StabilityRegion or sequence of StabilityRegion
-        From :func:`fakeack.engine.stability.stability_region`; several draw side by side.
+        From :func:`fakeack.stability_region`; several draw side by side.
     ax : matplotlib.axes.Axes or sequence of Axes, optional
         One Axes per region; a new row of panels by default.
     titles : sequence of str, optional
