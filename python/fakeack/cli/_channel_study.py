@@ -1,43 +1,32 @@
 """The study of ``fakeack analyze`` under a channel that is not the paper's, and the i.i.d.
 channel of the same mean beside it.
 
-:func:`fakeack.studies.report.analyse` takes the paper's ``lam``; :func:`analyse_channel` is the
-same study for any channel, built from the functions that take one: :func:`fakeack.offline_search`
-(the best offline pattern), :func:`fakeack.j_online`, :func:`fakeack.j_attack`,
-:func:`fakeack.j_max`, :func:`fakeack.beta_sweep`, :func:`fakeack.beta_bar`,
-:func:`fakeack.j_attack_limit`, the exact curves of :func:`fakeack.expected_trace_curve` and the
-Monte Carlo of :func:`fakeack.simulate`. Its :class:`~fakeack.studies.report.Analysis` has the
-same rows, so the same table, footnotes and decisions print it; its ``lam`` field holds the
-channel's mean low-power arrival probability, and :class:`ChannelStudy` carries the channel.
+:func:`analyse_channel` is :func:`fakeack.studies.report.analyse` under the channel with the
+best offline pattern of :func:`fakeack.offline_search` as the offline schedule. Its
+:class:`~fakeack.studies.report.Analysis` has the same rows, so the same table, footnotes and
+decisions print it; its ``lam`` field holds the channel's mean low-power arrival probability,
+and :class:`ChannelStudy` carries the channel.
 """
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from fractions import Fraction
 from typing import Any
 
-from ..attacks.chain import j_attack
-from ..attacks.kinds import PeriodicBlocking, RandomBlocking
+from ..attacks.kinds import PeriodicBlocking
 from ..attacks.rates import high_power_rate
-from ..attacks.threshold import BetaBar, beta_bar, beta_sweep, j_attack_limit
 from ..config.analyze import Config, MonteCarloConfig
 from ..model.channels import Channel, is_paper_channel
 from ..model.offline import offline_search
-from ..model.schedules import OfflineSchedule, OnlineDesign, design_online, j_max, j_online, offline_schedule
+from ..model.schedules import OfflineSchedule, OnlineDesign, design_online, j_online, offline_schedule
 from ..model.system import LinearSystem
-from ..montecarlo.curves import expected_trace_curve
-from ..montecarlo.protocol import simulate
-from ..studies.report import DEFAULT_HORIZON, Analysis, Curve, Row, analyse
+from ..studies.report import DEFAULT_HORIZON, Analysis, analyse
 from ._channel import iid_twin
 from ._report import format_number
 
 __all__ = ["ChannelStudy", "Twin", "analyse_channel", "study_channel", "twin_values"]
-
-#: ``RandomBlocking(1)`` blocks every flag-ACK: the attack of J_max.
-_ALL_BLOCKED = RandomBlocking(1.0)
 
 
 @dataclass(frozen=True)
@@ -74,41 +63,6 @@ class ChannelStudy:
     iid_design_j: float
 
 
-def _threshold_rows(bar: BetaBar) -> list[Row]:
-    finite, t_max = bar.finite, bar.t_max
-    return [
-        Row("beta_bar_limit", "beta-bar (large-period limit)", analytic=bar.limit, mc_text="n/a"),
-        Row(
-            "beta_bar_finite",
-            f"beta-bar (t<={t_max})",
-            analytic=None if finite is None else float(finite),
-            analytic_text=f"none with t<={t_max}" if finite is None else f"{finite} = {float(finite):.6f}",
-            mc_text="n/a",
-        ),
-    ]
-
-
-def _decisions(
-    s: LinearSystem, ch: Channel, online: OnlineDesign, attacks: Sequence[PeriodicBlocking], j_off: float
-) -> list[dict[str, Any]]:
-    z0, mu = online
-    out = []
-    for a in attacks:
-        j_pattern = j_attack(s, ch, z0, mu=mu, attack=a)
-        j_worst = j_attack_limit(s, ch, z0, a.beta, mu)
-        out.append(
-            {
-                "attack": a.label,
-                "beta": float(a.beta),
-                "j_attack": j_pattern,
-                "j_attack_limit": j_worst,
-                "choice_against_pattern": "online" if j_pattern < j_off else "offline",
-                "choice_against_worst_case": "online" if j_worst < j_off else "offline",
-            }
-        )
-    return out
-
-
 def analyse_channel(
     s: LinearSystem,
     ch: Channel,
@@ -124,8 +78,8 @@ def analyse_channel(
 
     The offline schedule is the best pattern of density ``ratio`` under ``ch``
     (:func:`fakeack.offline_search`; the evenly spread one of Theorem 3.1 on an i.i.d. channel);
-    J_max's exact J_H is that of the online schedule with every flag-ACK blocked
-    (``RandomBlocking(1)``), from the paper's initial condition like the other rows.
+    J_max's exact J_H is that of the online schedule with every flag-ACK blocked, from the paper's
+    initial condition like the other rows.
 
     Returns
     -------
@@ -133,83 +87,11 @@ def analyse_channel(
         The study (``lam`` = the channel's mean low-power arrival probability) and the offline
         pattern as 0/1 text.
     """
-    start = time.perf_counter()
-    H = mc.horizon if mc is not None else horizon
-    z0, mu = online
     search = offline_search(s, ch, ratio)
-    offline = OfflineSchedule(pattern=_pattern_text(search.pattern))
-    cases: list[tuple[str, str, str, OfflineSchedule | OnlineDesign, PeriodicBlocking | None, float]] = [
-        ("j_offline", "J_offline", "offline", offline, None, search.j),
-        ("j_online", "J_online", "online, no attack", online, None, j_online(s, ch, z0, mu)),
-    ]
-    for a in attacks:
-        label = f"online, attack $\\beta$ = {a.label}"
-        cases.append(
-            (
-                f"j_attack_{a.label}",
-                f"J_attack beta={a.label}",
-                label,
-                online,
-                a,
-                j_attack(s, ch, z0, mu=mu, attack=a),
-            )
-        )
-    rows: list[Row] = []
-    curves: list[Curve] = []
-    for key, label, curve_label, sched, attack, stationary in cases:
-        exact = expected_trace_curve(s, ch, sched, H, attack).j_k
-        row = Row(
-            key,
-            label,
-            analytic=stationary,
-            exact_h=float(exact[-1]),
-            mc_text="skipped" if mc is None else "-",
-        )
-        mc_curve = None
-        if mc is not None:
-            res = simulate(
-                s,
-                ch,
-                sched,
-                horizon=mc.horizon,
-                runs=mc.runs,
-                seed=mc.seed,
-                attack=attack,
-                mode=mc.mode,
-                protocol=mc.protocol,
-            )
-            row.mc, row.mc_stderr, mc_curve = res.j, res.stderr, res.j_k
-        rows.append(row)
-        curves.append(Curve(curve_label, exact, mc_curve, stationary))
-    j_all = j_max(s, ch)
-    exact_all = float(expected_trace_curve(s, ch, online, H, _ALL_BLOCKED).j_k[-1])
-    rows.append(Row("j_max", "J_max (all blocked)", analytic=j_all, exact_h=exact_all))
-    sweep = bar = None
-    if t_max is not None:
-        z, m = (None, None) if designed else (z0, mu)
-        sweep = beta_sweep(s, ch, ratio, t_max, z0=z, mu=m)
-        bar = beta_bar(s, ch, ratio, t_max, z0=z, mu=m)
-        rows += _threshold_rows(bar)
-    analysis = Analysis(
-        system=s,
-        lam=ch.mean_low,
-        ratio=ratio,
-        online=online,
-        designed=designed,
-        attacks=tuple(attacks),
-        horizon=H,
-        mc=mc,
-        rows=rows,
-        curves=curves,
-        j_off=search.j,
-        j_on=cases[1][5],
-        j_max=j_all,
-        sweep=sweep,
-        bar=bar,
-        decisions=_decisions(s, ch, online, attacks, search.j),
-        elapsed=time.perf_counter() - start,
-    )
-    return analysis, _pattern_text(search.pattern)
+    pattern = _pattern_text(search.pattern)
+    offline = (OfflineSchedule(pattern=pattern), search.j)
+    analysis = analyse(s, ch, ratio, online, designed, attacks, t_max, mc, horizon, offline=offline)
+    return analysis, pattern
 
 
 def _pattern_text(pattern: Any) -> str:

@@ -15,9 +15,10 @@ from typing import Any
 import numpy as np
 
 from ..attacks.chain import j_attack
-from ..attacks.kinds import Attack, PeriodicBlocking
+from ..attacks.kinds import Attack, PeriodicBlocking, RandomBlocking
 from ..attacks.threshold import BetaBar, BetaSweep, beta_bar, beta_sweep, j_attack_limit
 from ..config.analyze import MonteCarloConfig
+from ..model.channels import Channel
 from ..model.schedules import OfflineSchedule, OnlineDesign, OnlineSchedule, j_max, j_offline, j_online
 from ..model.system import LinearSystem
 from ..montecarlo.curves import expected_trace_curve
@@ -157,12 +158,12 @@ def _exact_j_max_curve(s: LinearSystem, lam: float, horizon: int) -> np.ndarray:
 
 def run_monte_carlo(
     s: LinearSystem,
-    lam: float,
+    lam: float | Channel,
     sched: OfflineSchedule | OnlineDesign,
     mc: MonteCarloConfig,
     attack: Attack | None,
 ) -> SimulationResult:
-    """:func:`fakeack.simulate` with the settings of ``mc``."""
+    """:func:`fakeack.simulate` with the settings of ``mc`` (``lam``: a float or any channel)."""
     return simulate(
         s,
         lam,
@@ -189,13 +190,20 @@ class _Case:
 
 
 def _cases(
-    s: LinearSystem, lam: float, ratio: Fraction, online: OnlineDesign, attacks: Sequence[PeriodicBlocking]
+    s: LinearSystem,
+    lam: float | Channel,
+    ratio: Fraction,
+    online: OnlineDesign,
+    attacks: Sequence[PeriodicBlocking],
+    offline: tuple[OfflineSchedule, float] | None,
 ) -> list[_Case]:
-    """Offline, online without attack, then online under each attack."""
+    """Offline (Theorem 3.1's, or ``offline``: a schedule and its J), online without attack, then
+    online under each attack."""
     z0, mu = online
     on = OnlineSchedule(z0, mu)
+    off, j_off = (OfflineSchedule(ratio), j_offline(s, lam, ratio)) if offline is None else offline
     cases = [
-        _Case("j_offline", "J_offline", "offline", OfflineSchedule(ratio), None, j_offline(s, lam, ratio)),
+        _Case("j_offline", "J_offline", "offline", off, None, j_off),
         _Case("j_online", "J_online", "online, no attack", on, None, j_online(s, lam, z0, mu)),
     ]
     for a in attacks:
@@ -213,7 +221,12 @@ def _cases(
 
 
 def _evaluate(
-    case: _Case, s: LinearSystem, lam: float, horizon: int, mc: MonteCarloConfig | None, paper: dict[str, str]
+    case: _Case,
+    s: LinearSystem,
+    lam: float | Channel,
+    horizon: int,
+    mc: MonteCarloConfig | None,
+    paper: dict[str, str],
 ) -> tuple[Row, Curve]:
     """The case's stationary, exact finite-horizon and (if ``mc``) Monte Carlo cost."""
     exact = expected_trace_curve(s, lam, case.schedule, horizon, case.attack).j_k
@@ -233,7 +246,7 @@ def _evaluate(
 
 
 def sweep_and_thresholds(
-    system: LinearSystem, lam: float, ratio: Fraction, online: OnlineDesign | None, t_max: int
+    system: LinearSystem, lam: float | Channel, ratio: Fraction, online: OnlineDesign | None, t_max: int
 ) -> tuple[BetaSweep, BetaBar]:
     """The beta sweep and both thresholds, for the online schedule given or (None) designed."""
     z0, mu = (None, None) if online is None else online
@@ -266,7 +279,11 @@ def _threshold_rows(bar: BetaBar, paper: dict[str, str]) -> list[Row]:
 
 
 def _decisions(
-    s: LinearSystem, lam: float, online: OnlineDesign, attacks: Sequence[PeriodicBlocking], j_off: float
+    s: LinearSystem,
+    lam: float | Channel,
+    online: OnlineDesign,
+    attacks: Sequence[PeriodicBlocking],
+    j_off: float,
 ) -> list[dict[str, Any]]:
     """For each attack: the schedule to use against it, and against the worst attack of its budget."""
     z0, mu = online
@@ -289,7 +306,7 @@ def _decisions(
 
 def analyse(
     s: LinearSystem,
-    lam: float,
+    lam: float | Channel,
     ratio: Fraction,
     online: OnlineDesign,
     designed: bool,
@@ -298,6 +315,7 @@ def analyse(
     mc: MonteCarloConfig | None,
     horizon: int = DEFAULT_HORIZON,
     paper: dict[str, str] | None = None,
+    offline: tuple[OfflineSchedule, float] | None = None,
 ) -> Analysis:
     """Stationary, exact finite-horizon and Monte Carlo costs of the offline, online and attacked
     schedules, J_max, and (if ``t_max``) the sweep and both thresholds.
@@ -306,8 +324,9 @@ def analyse(
     ----------
     s : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability at low power.
+    lam : float or Channel
+        Arrival probability at low power (the paper's channel), or any channel; the study's
+        ``lam`` is then the channel's mean low-power arrival probability.
     ratio : fractions.Fraction
         Energy ratio p/q.
     online : OnlineDesign
@@ -324,6 +343,8 @@ def analyse(
         Horizon of the exact finite-horizon curves when there is no Monte Carlo.
     paper : dict, optional
         Printed values by row key, for the ``paper`` column.
+    offline : (OfflineSchedule, float), optional
+        The offline schedule and its J (default: Theorem 3.1's pattern, :func:`fakeack.j_offline`).
 
     Returns
     -------
@@ -332,7 +353,7 @@ def analyse(
     start = time.perf_counter()
     paper = paper or {}
     H = mc.horizon if mc is not None else horizon
-    cases = _cases(s, lam, ratio, online, attacks)
+    cases = _cases(s, lam, ratio, online, attacks, offline)
     j_off, j_on, j_all_blocked = cases[0].stationary, cases[1].stationary, j_max(s, lam)
     rows: list[Row] = []
     curves: list[Curve] = []
@@ -340,7 +361,11 @@ def analyse(
         row, curve = _evaluate(case, s, lam, H, mc, paper)
         rows.append(row)
         curves.append(curve)
-    exact_j_max = float(_exact_j_max_curve(s, lam, H)[-1])
+    if isinstance(lam, Channel):
+        # Every flag-ACK blocked from the paper's initial condition, like the other rows.
+        exact_j_max = float(expected_trace_curve(s, lam, online, H, RandomBlocking(1.0)).j_k[-1])
+    else:
+        exact_j_max = float(_exact_j_max_curve(s, lam, H)[-1])
     paper_j_max = paper.get("j_max", "-")
     rows.append(
         Row("j_max", "J_max (all blocked)", analytic=j_all_blocked, exact_h=exact_j_max, paper=paper_j_max)
@@ -352,7 +377,7 @@ def analyse(
         rows += _threshold_rows(bar, paper)
     return Analysis(
         system=s,
-        lam=lam,
+        lam=lam.mean_low if isinstance(lam, Channel) else lam,
         ratio=ratio,
         online=online,
         designed=designed,
