@@ -100,7 +100,7 @@ from .plots import (
     plot_frontiers,
     plot_game,
 )
-from .studies import study_grid
+from .studies import MemorySweep, memory_channel, memory_sweep, study_grid
 
 __all__ = [
     "AttackerAutomaton",
@@ -134,6 +134,9 @@ __all__ = [
     "flag_interval_law",
     "interval_test",
     "study_grid",
+    "MemorySweep",
+    "memory_channel",
+    "memory_sweep",
     "Scenario",
     "stability_region",
     "StabilityRegion",

@@ -101,7 +101,13 @@ CASES = {
     "plot_beta_bar": ("grid_inputs", 1, lambda d, ax: plots.plot_beta_bar(d["ds"], "paper", ax)),
     "plot_decision": ("grid_inputs", 2, lambda d, ax: plots.plot_decision(d["ds"], "paper", ax)),
     "plot_stability_region": ("stability_inputs", 2, lambda d, ax: plots.plot_stability_region(d, ax)),
+    "plot_memory": ("memory_inputs", 2, lambda d, ax: plots.plot_memory(d, ax)),
 }
+
+
+@pytest.fixture(scope="module")
+def memory_inputs(paper):
+    return fa.memory_sweep(paper, 0.5, "1/7", [-0.2, 0.3], beta="1/5", t_max=20)
 
 
 @pytest.fixture(scope="module")

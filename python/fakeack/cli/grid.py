@@ -2,7 +2,8 @@
 
 Writes ``DIR/study.zarr`` block by block (Ctrl-C or a killed run leaves it consistent, and
 ``--resume`` finishes it), then ``DIR/study.nc`` (netCDF) and the heat maps of
-:mod:`fakeack.plots.grid`. ``--workers N`` runs on a ``dask.distributed.LocalCluster`` of N
+:mod:`fakeack.plots.grid` (for a study over channels, the memory figures of
+:func:`fakeack.plots.write_memory_figures`). ``--workers N`` runs on a ``dask.distributed.LocalCluster`` of N
 worker processes, ``--scheduler ADDRESS`` on a running Dask scheduler.
 """
 
@@ -106,10 +107,11 @@ def run(args: argparse.Namespace) -> int:
     figures: list[Path] = []
     if not args.no_figures:
         from ..plots.grid import write_heat_maps
+        from ..plots.memory import write_memory_figures
         from ..plots.paper import have_matplotlib
 
         if have_matplotlib():
-            figures = write_heat_maps(ds, out)
+            figures = write_memory_figures(ds, out) if "memory" in ds.dims else write_heat_maps(ds, out)
         else:
             print("note: heat maps skipped (pip install 'fakeack[plot]' for matplotlib)", file=sys.stderr)
     dims = " x ".join(f"{ds.sizes[d]} {d}" for d in ds.sizes)

@@ -1,10 +1,11 @@
 """TOML configuration of ``fakeack grid`` (a parameter study, see :func:`fakeack.study_grid`).
 
 Sections: ``[grid]`` (the axes lam, ratio and optionally beta, each a list or
-``{start, stop, num}``; family, t_max, block), the systems (``[systems.NAME]`` tables, or one
-``[system]``) and optionally ``[montecarlo]`` (runs, horizon, seed, mode, protocol). Unknown
-sections and keys are errors, and every error names its section and key
-(``config: [grid] ratio: ...``). ``fakeack grid --example`` prints :func:`example_text`.
+``{start, stop, num}``; family, t_max, block; or instead of lam a ``[grid.channel]`` table with
+``kind = "gilbert-elliott"`` and the axes ``mean`` and ``memory``), the systems
+(``[systems.NAME]`` tables, or one ``[system]``) and optionally ``[montecarlo]`` (runs,
+horizon, seed, mode, protocol). Unknown sections and keys are errors, and every error names its
+section and key (``config: [grid] ratio: ...``). ``fakeack grid --example`` prints :func:`example_text`.
 """
 
 from __future__ import annotations
@@ -38,7 +39,11 @@ __all__ = [
 
 
 _SECTIONS = ("grid", "systems", "system", "montecarlo")
-_GRID = Section(("lam", "ratio", "beta", "family", "t_max", "block"), "lam and ratio are required")
+_GRID = Section(
+    ("lam", "ratio", "beta", "family", "t_max", "block", "channel"),
+    "ratio and either lam or channel are required",
+)
+_CHANNEL = Section(("kind", "mean", "memory"), "kind, mean and memory are required")
 _SYSTEM = Section(("A", "C", "Q", "R"), "A, C, Q and R are required")
 _MONTECARLO = Section(("runs", "horizon", "seed", "mode", "protocol"))
 _RANGE = Section(("start", "stop", "num"))
@@ -50,13 +55,14 @@ class GridConfig:
     """A parsed, validated ``fakeack grid`` configuration: the arguments of :func:`fakeack.study_grid`."""
 
     systems: dict[str, LinearSystem]
-    lam: list[float]
+    lam: list[float] | None
     ratio: list[Fraction]
     beta: list[Fraction] | None = None
     family: str = "periodic"
     t_max: int = 60
     block: int | None = None
     montecarlo: dict[str, Any] | None = None
+    channel: dict[str, Any] | None = None
     source: str = "<string>"
     raw: dict[str, Any] = field(default_factory=dict, repr=False, compare=False)
 
@@ -71,32 +77,56 @@ class GridConfig:
             "t_max": self.t_max,
             "montecarlo": self.montecarlo,
             "block": self.block,
+            "channel": self.channel,
         }
 
 
-def _axis(key: str, value: Any) -> list[Fraction]:
+def _axis(key: str, value: Any, section: str = "grid") -> list[Fraction]:
     """A list of numbers/fraction strings, or ``{start, stop, num}`` evenly spaced, exactly."""
     if isinstance(value, dict):
-        table = check_keys(f"grid.{key}", value, _RANGE)
+        table = check_keys(f"{section}.{key}", value, _RANGE)
         for k in _RANGE.keys:
             if k not in table:
-                raise config_error("grid", key, f"a range needs start, stop and num (missing {k})")
-        start = read_fraction("grid", f"{key}.start", table["start"])
-        stop = read_fraction("grid", f"{key}.stop", table["stop"])
-        num = read_int("grid", f"{key}.num", table["num"], 1)
+                raise config_error(section, key, f"a range needs start, stop and num (missing {k})")
+        start = read_fraction(section, f"{key}.start", table["start"])
+        stop = read_fraction(section, f"{key}.stop", table["stop"])
+        num = read_int(section, f"{key}.num", table["num"], 1)
         if num > _MAX_AXIS:
-            raise config_error("grid", f"{key}.num", f"must be at most {_MAX_AXIS}, got {num}")
+            raise config_error(section, f"{key}.num", f"must be at most {_MAX_AXIS}, got {num}")
         if num == 1:
             return [start]
         step = (stop - start) / (num - 1)
         return [start + i * step for i in range(num)]
     if not isinstance(value, list):
         raise config_error(
-            "grid", key, f"must be a list or a table {{start, stop, num}}, got {toml_kind(value)}"
+            section, key, f"must be a list or a table {{start, stop, num}}, got {toml_kind(value)}"
         )
     if not value:
-        raise config_error("grid", key, "empty axis (give at least one value)")
-    return [read_fraction("grid", f"{key}[{i}]", x) for i, x in enumerate(value)]
+        raise config_error(section, key, "empty axis (give at least one value)")
+    return [read_fraction(section, f"{key}[{i}]", x) for i, x in enumerate(value)]
+
+
+def _channel(grid: dict[str, Any]) -> dict[str, Any] | None:
+    """``[grid.channel]``: the mean and memory dimensions of a study over bursty channels."""
+    if "channel" not in grid:
+        return None
+    if "lam" in grid:
+        raise config_error(
+            "grid", "channel", "give either lam (the i.i.d. channel) or [grid.channel], not both"
+        )
+    if not isinstance(grid["channel"], dict):
+        raise config_error("grid", "channel", f"must be a table, got {toml_kind(grid['channel'])}")
+    table = check_keys("grid.channel", grid["channel"], _CHANNEL)
+    for key in _CHANNEL.keys:
+        if key not in table:
+            raise config_error("grid.channel", key, "missing")
+    if table["kind"] != "gilbert-elliott":
+        raise config_error("grid.channel", "kind", f"must be 'gilbert-elliott', got {table['kind']!r}")
+    return {
+        "kind": table["kind"],
+        "mean": [float(x) for x in _axis("mean", table["mean"], "grid.channel")],
+        "memory": [float(x) for x in _axis("memory", table["memory"], "grid.channel")],
+    }
 
 
 def _systems(data: dict[str, Any]) -> dict[str, LinearSystem]:
@@ -170,30 +200,43 @@ def parse_grid_config(data: dict[str, Any], source: str = "<string>") -> GridCon
             expected = ", ".join(f"[{s}]" for s in ("grid", "systems.NAME", "montecarlo"))
             raise ConfigError(f"config: [{name}]: unknown section (expected {expected})")
     if "grid" not in data:
-        raise ConfigError("config: [grid]: missing section (lam and ratio are required)")
+        raise ConfigError("config: [grid]: missing section (ratio and either lam or channel are required)")
     grid = check_keys("grid", data["grid"], _GRID)
     for key in ("lam", "ratio"):
-        if key not in grid:
+        if key not in grid and not (key == "lam" and "channel" in grid):
             raise config_error("grid", key, "missing")
     systems = _systems(data)
+    channel = _channel(grid)
     cfg = GridConfig(
         systems=systems,
-        lam=[float(x) for x in _axis("lam", grid["lam"])],
+        lam=None if channel is not None else [float(x) for x in _axis("lam", grid["lam"])],
         ratio=_axis("ratio", grid["ratio"]),
         beta=_axis("beta", grid["beta"]) if "beta" in grid else None,
         family=grid.get("family", "periodic"),
         t_max=read_int("grid", "t_max", grid.get("t_max", 60), 2),
         block=read_int("grid", "block", grid["block"], 1) if "block" in grid else None,
         montecarlo=_montecarlo(data),
+        channel=channel,
         source=source,
         raw=data,
     )
     a = cfg.arguments()
     try:
-        spec(a["systems"], a["lam"], a["ratio"], a["beta"], a["family"], a["t_max"], a["montecarlo"])
+        spec(
+            a["systems"],
+            a["lam"],
+            a["ratio"],
+            a["beta"],
+            a["family"],
+            a["t_max"],
+            a["montecarlo"],
+            a["channel"],
+        )
     except (TypeError, ValueError) as exc:
         msg = str(exc)
         section = "montecarlo" if msg.startswith("montecarlo") else "grid"
+        if msg.startswith("channel "):
+            section, msg = "grid.channel", msg[len("channel ") :]
         raise ConfigError(f"config: [{section}] {msg}") from None
     return cfg
 

@@ -22,6 +22,7 @@ from .families import plot_attack_families
 from .frontier import plot_frontiers
 from .game import plot_game
 from .grid import plot_beta_bar, plot_decision, write_heat_maps
+from .memory import plot_memory, write_memory_figures
 from .paper import JkCurve, have_matplotlib, plot_beta_sweep, plot_jk, plot_stationary
 from .stability import plot_stability_region
 
@@ -39,4 +40,6 @@ __all__ = [
     "plot_decision",
     "write_heat_maps",
     "plot_stability_region",
+    "plot_memory",
+    "write_memory_figures",
 ]

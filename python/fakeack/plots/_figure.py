@@ -21,7 +21,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
     from matplotlib.figure import Figure
 
-__all__ = ["given_axes", "new_figure", "save_figure"]
+__all__ = ["file_stem", "given_axes", "new_figure", "save_figure"]
 
 
 def new_figure(
@@ -52,6 +52,11 @@ def new_figure(
     fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)  # attached to this figure only: no global backend switch
     return fig, fig.subplots(nrows, ncols, **subplot_kw)
+
+
+def file_stem(name: str) -> str:
+    """``name`` (a system's, say) as part of a file name: letters, digits, ``-_.``, else ``_``."""
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
 
 
 def figure_of(ax: Axes) -> Figure:

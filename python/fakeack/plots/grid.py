@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ._figure import figure_of, given_axes, new_figure, save_figure
+from ._figure import figure_of, file_stem, given_axes, new_figure, save_figure
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes
@@ -172,7 +172,7 @@ def write_heat_maps(ds: Any, outdir: str | Path) -> list[Path]:
     out = Path(outdir)
     written: list[Path] = []
     for name in (str(s) for s in ds["system"].values):
-        safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+        safe = file_stem(name)
         written += save_figure(plot_beta_bar(ds, name), out, f"beta_bar_{safe}")
         if "decision" in ds:
             written += save_figure(plot_decision(ds, name), out, f"decision_{safe}")

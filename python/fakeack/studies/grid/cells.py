@@ -27,6 +27,7 @@ from .design import lam_fractions
 
 __all__ = [
     "MonteCarlo",
+    "ChannelAxes",
     "Block",
     "cell_seed",
     "mc_attack",
@@ -46,8 +47,19 @@ class MonteCarlo:
 
 
 @dataclass(frozen=True)
+class ChannelAxes:
+    """The ``mean`` and ``memory`` dimensions of a study over on/off Gilbert-Elliott channels
+    (read by :func:`fakeack.studies.grid.channel.channel_axes`)."""
+
+    mean: tuple[float, ...]
+    memory: tuple[float, ...]
+    kind: str = "gilbert-elliott"
+
+
+@dataclass(frozen=True)
 class Block:
-    """One task: ``system`` over the tile ``lam`` x ``ratio`` (C order), at every budget."""
+    """One task: ``system`` over the tile ``lam`` x ``ratio`` (C order), at every budget; with
+    ``channel``, over the tile (mean x memory) x ``ratio`` instead (``lam`` empty)."""
 
     index: int
     system_name: str
@@ -58,6 +70,7 @@ class Block:
     family: str
     t_max: int
     montecarlo: MonteCarlo | None
+    channel: ChannelAxes | None = None
 
 
 def cell_seed(seed: int, system: str, lam: float, ratio: Fraction, beta: Fraction) -> int:

@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from ..memory import memory_channel
+from .cells import ChannelAxes
 from .spec import Spec
 from .store import Variable
 
@@ -16,19 +18,31 @@ _EXTRA = (
     "(xarray, zarr 3, dask[distributed], h5netcdf)"
 )
 
-_CELL = ("system", "lam", "ratio")
-_CELL_BETA = (*_CELL, "beta")
+_LAM_CELL = ("system", "lam", "ratio")
+_CHANNEL_CELL = ("system", "mean", "memory", "ratio")
 
 
 def _variables(sp: Spec) -> list[Variable]:
     """The study's data variables, in dataset order."""
     nb = (len(sp.beta),)
+    _CELL = _LAM_CELL if sp.channel is None else _CHANNEL_CELL
+    _CELL_BETA = (*_CELL, "beta")
+    j_max_note = (
+        "J with every flag-ACK blocked; inf when (1 - lam) rho(A)^2 >= 1 (Model note 5)"
+        if sp.channel is None
+        else "J with every flag-ACK blocked (the always-low sensor); inf when it is unstable"
+    )
+    j_off_note = (
+        "J of the optimal offline schedule (Theorem 3.1, Model note 1)"
+        if sp.channel is None
+        else "J of the best offline pattern under the channel (fakeack.offline_search)"
+    )
     v = [
         Variable(
             "j_offline",
             _CELL,
             "f",
-            {"long_name": "J of the optimal offline schedule (Theorem 3.1, Model note 1)"},
+            {"long_name": j_off_note},
         ),
         Variable(
             "j_online", _CELL, "f", {"long_name": "J of the online schedule without attack (Model note 2)"}
@@ -37,7 +51,7 @@ def _variables(sp: Spec) -> list[Variable]:
             "j_max",
             _CELL,
             "f",
-            {"long_name": "J with every flag-ACK blocked; inf when (1 - lam) rho(A)^2 >= 1 (Model note 5)"},
+            {"long_name": j_max_note},
         ),
         Variable(
             "z0", _CELL, "i", {"long_name": "memory length of fakeack.design_online; 0: no online design"}
@@ -110,27 +124,34 @@ def _variables(sp: Spec) -> list[Variable]:
 def _coords(sp: Spec) -> dict[str, tuple[tuple[str, ...], np.ndarray, dict[str, Any]]]:
     c: dict[str, tuple[tuple[str, ...], np.ndarray, dict[str, Any]]] = {
         "system": (("system",), np.array(sp.names, dtype=str), {"long_name": "system name"}),
-        "lam": (
+    }
+    if sp.channel is None:
+        c["lam"] = (
             ("lam",),
             np.array(sp.lam, dtype=np.float64),
             {"long_name": "arrival probability at low power"},
-        ),
-        "ratio": (
-            ("ratio",),
-            np.array([str(r) for r in sp.ratio], dtype=str),
-            {"long_name": "energy ratio p/q"},
-        ),
-        "ratio_value": (
-            ("ratio",),
-            np.array([float(r) for r in sp.ratio]),
-            {"long_name": "energy ratio as a float"},
-        ),
-        "n_x": (
-            ("system",),
-            np.array([s.n_x for s in sp.systems], dtype=np.int64),
-            {"long_name": "state dimension"},
-        ),
-    }
+        )
+    else:
+        c.update(_channel_coords(sp.channel))
+    c.update(
+        {
+            "ratio": (
+                ("ratio",),
+                np.array([str(r) for r in sp.ratio], dtype=str),
+                {"long_name": "energy ratio p/q"},
+            ),
+            "ratio_value": (
+                ("ratio",),
+                np.array([float(r) for r in sp.ratio]),
+                {"long_name": "energy ratio as a float"},
+            ),
+            "n_x": (
+                ("system",),
+                np.array([s.n_x for s in sp.systems], dtype=np.int64),
+                {"long_name": "state dimension"},
+            ),
+        }
+    )
     if sp.beta:
         c["beta"] = (("beta",), np.array([float(b) for b in sp.beta]), {"long_name": "attacker budget"})
         c["beta_fraction"] = (
@@ -141,11 +162,37 @@ def _coords(sp: Spec) -> dict[str, tuple[tuple[str, ...], np.ndarray, dict[str, 
     return c
 
 
+def _channel_coords(axes: ChannelAxes) -> dict[str, tuple[tuple[str, ...], np.ndarray, dict[str, Any]]]:
+    """``mean`` and ``memory``, and each cell's channel parameters p and q over both."""
+    grid = [[memory_channel(x, m) for m in axes.memory] for x in axes.mean]
+    dims = ("mean", "memory")
+    return {
+        "mean": (
+            ("mean",),
+            np.array(axes.mean, dtype=np.float64),
+            {"long_name": "mean low-power arrival probability q/(p+q)"},
+        ),
+        "memory": (("memory",), np.array(axes.memory, dtype=np.float64), {"long_name": "memory 1 - p - q"}),
+        "p": (
+            dims,
+            np.array([[ch.p for ch in row] for row in grid]),
+            {"long_name": "good-to-bad probability"},
+        ),
+        "q": (
+            dims,
+            np.array([[ch.q for ch in row] for row in grid]),
+            {"long_name": "bad-to-good probability"},
+        ),
+    }
+
+
 def _attrs(sp: Spec) -> dict[str, Any]:
     from ... import __version__
 
     mc = sp.montecarlo
+    channel = {} if sp.channel is None else {"channel": "GilbertElliott(p, q, lam_good=1, lam_bad=0)"}
     return {
+        **channel,
         "title": "fakeack parameter study",
         "fakeack_version": __version__,
         "fakeack_study": sp.fingerprint(),

@@ -18,7 +18,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import numpy.typing as npt
 
-from .cells import Block, run_block
+from .cells import Block, ChannelAxes, run_block
+from .channel import run_channel_block
 from .dataset import _EXTRA, _attrs, _coords, _dataset, _variables
 from .spec import Layout, RatioAxis, Spec, SystemsLike, spec
 from .store import GridStore, StoreError, Variable
@@ -98,17 +99,22 @@ def _bar(total: int, initial: int, progress: bool | None) -> Any:
 
 def _blocks(sp: Spec, layout: Layout, todo: list[int]) -> Iterator[Block]:
     for index in todo:
-        s, li, ri = layout.region(index)
+        region = layout.region(index)
+        s, ri = region[0], region[-1]
+        axes = None
+        if sp.channel is not None:
+            axes = ChannelAxes(sp.channel.mean[region[1]], sp.channel.memory[region[2]], sp.channel.kind)
         yield Block(
             index=index,
             system_name=sp.names[s.start],
             system=sp.systems[s.start],
-            lam=sp.lam[li],
+            lam=() if axes is not None else sp.lam[region[1]],
             ratio=sp.ratio[ri],
             beta=sp.beta,
             family=sp.family,
             t_max=sp.t_max,
             montecarlo=sp.montecarlo,
+            channel=axes,
         )
 
 
@@ -123,8 +129,9 @@ def _run(
     """Submit every block, and hand each result to ``sink`` as it comes (in the calling thread)."""
     pending: dict[Any, int] = {}
     try:
+        task = run_block if sp.channel is None else run_channel_block
         for blk in _blocks(sp, layout, todo):
-            pending[pool.submit(run_block, blk)] = blk.index
+            pending[pool.submit(task, blk)] = blk.index
         while pending:
             done, _ = cf.wait(list(pending), return_when=cf.FIRST_COMPLETED)
             for fut in done:
@@ -133,8 +140,7 @@ def _run(
                 with _sigint_deferred():
                     sink(index, result["data"])
                 if bar is not None:
-                    s, li, ri = layout.region(index)
-                    bar.update((li.stop - li.start) * (ri.stop - ri.start))
+                    bar.update(layout.cells(index))
     finally:
         for fut in pending:
             fut.cancel()
@@ -145,8 +151,8 @@ def _run(
 
 def study_grid(
     systems: SystemsLike,
-    lam: npt.ArrayLike,
-    ratio: RatioAxis,
+    lam: npt.ArrayLike | None = None,
+    ratio: RatioAxis | None = None,
     beta: RatioAxis | None = None,
     family: str = "periodic",
     t_max: int = 60,
@@ -156,6 +162,7 @@ def study_grid(
     resume: bool = False,
     block: int | None = None,
     progress: bool | None = None,
+    channel: Mapping[str, object] | None = None,
 ) -> xr.Dataset:
     r"""Every quantity of the analysis over a grid of systems, lam, energy ratios and budgets.
 
@@ -173,7 +180,8 @@ def study_grid(
         The systems; a dict names them (a list is named ``system0``, ``system1``, ...; one system
         ``system``).
     lam : array_like of float
-        Arrival probabilities in (0, 1), one dimension.
+        Arrival probabilities in (0, 1) of the paper's i.i.d. channel, one dimension; not with
+        ``channel``.
     ratio : sequence of Fraction or str
         Energy ratios p/q in (0, 1) ("1/7", ``Fraction(1, 7)``); stored as "p/q" strings.
     beta : sequence of float, Fraction or str, optional
@@ -199,15 +207,26 @@ def study_grid(
         With ``store``: keep the blocks already complete there and compute the rest. A store of
         another study, of another fakeack version, or not a fakeack store is refused.
     block : int, optional
-        Cells per task (at most; one system and a lam x ratio tile each); None picks a size.
+        Cells per task (at most; one system and a tile of the other axes each); None picks a size.
     progress : bool or None
         A tqdm bar; None shows it when standard error is a terminal.
+    channel : dict, optional
+        ``dict(kind="gilbert-elliott", mean=[...], memory=[...])``: instead of ``lam``, the
+        dimensions ``mean`` (the stationary low-power arrival probability, in (0, 1)) and
+        ``memory`` :math:`= 1 - p - q` (below 1; 0 is the i.i.d. channel of λ = mean) of the on/off
+        channel ``GilbertElliott(p, q, 1, 0)`` with :math:`p = (1 - m)(1 - \bar\lambda)`,
+        :math:`q = (1 - m)\bar\lambda` (:func:`fakeack.memory_channel`). Each cell
+        designs its online schedule under its channel (:func:`fakeack.design_online`), its offline
+        schedule is the best pattern (:func:`fakeack.offline_search`), and every value equals the
+        single call under ``fakeack.GilbertElliott(ds.p, ds.q, 1, 0)`` of that cell exactly.
 
     Returns
     -------
     xarray.Dataset
-        Dimensions ``system, lam, ratio[, beta]``; variables ``j_offline, j_online, j_max, z0, mu,
-        beta_bar_limit, beta_bar_finite, beta_bar_finite_rt, status`` (and ``beta_bar_random``),
+        Dimensions ``system, lam, ratio[, beta]`` (``system, mean, memory, ratio[, beta]`` with
+        ``channel``, and coordinates ``p``, ``q`` over ``mean, memory``); variables
+        ``j_offline, j_online, j_max, z0, mu, beta_bar_limit, beta_bar_finite,
+        beta_bar_finite_rt, status`` (and ``beta_bar_random``),
         ``j_attack, decision`` with β, ``mc_j, mc_stderr, mc_j_analytic`` with a Monte Carlo.
         A cell that cannot be computed holds NaN (``z0`` 0, ``decision`` "n/a") and its reason in
         ``status``; where J_max is infinite the values are those of the single calls (``j_attack``
@@ -223,10 +242,24 @@ def study_grid(
     ValueError
         Before any work starts, for a malformed grid: an empty axis, a value out of range, a
         duplicate coordinate, a ratio that no lam of the grid can meet (or a lam no ratio), an
-        unknown family or Monte Carlo key; for a store that cannot be resumed (``fakeack.grid.StoreError``).
+        unknown family or Monte Carlo key, a ``channel`` with an unknown key or kind, a mean
+        outside (0, 1), a memory that gives no channel of some mean, or ``lam`` together with
+        ``channel``; for a store that cannot be resumed (``fakeack.grid.StoreError``).
     """
     ds, _ = run_study(
-        systems, lam, ratio, beta, family, t_max, montecarlo, executor, store, resume, block, progress
+        systems,
+        lam,
+        ratio,
+        beta,
+        family,
+        t_max,
+        montecarlo,
+        executor,
+        store,
+        resume,
+        block,
+        progress,
+        channel,
     )
     return ds
 
@@ -245,8 +278,8 @@ class RunInfo:
 
 def run_study(
     systems: SystemsLike,
-    lam: npt.ArrayLike,
-    ratio: RatioAxis,
+    lam: npt.ArrayLike | None = None,
+    ratio: RatioAxis | None = None,
     beta: RatioAxis | None = None,
     family: str = "periodic",
     t_max: int = 60,
@@ -256,6 +289,7 @@ def run_study(
     resume: bool = False,
     block: int | None = None,
     progress: bool | None = None,
+    channel: Mapping[str, object] | None = None,
 ) -> tuple[xr.Dataset, RunInfo]:
     """:func:`study_grid`, and how many blocks this call computed and found complete."""
     try:
@@ -265,7 +299,7 @@ def run_study(
             import zarr  # noqa: F401
     except ImportError as exc:
         raise ImportError(f"{_EXTRA}; missing: {exc.name}") from None
-    sp = spec(systems, lam, ratio, beta, family, t_max, montecarlo)
+    sp = spec(systems, lam, ratio, beta, family, t_max, montecarlo, channel)
     pool, own, workers = _executor(executor)
     try:
         return _study(sp, pool, workers, store, resume, block, progress)
@@ -305,7 +339,7 @@ def _study(
     path = Path(store)
     gs, complete = _open_store(sp, path, resume, block, workers, variables, attrs, __version__)
     todo = [i for i in range(gs.layout.n_blocks) if i not in complete]
-    done_cells = sum(_cells(gs.layout, i) for i in complete)
+    done_cells = sum(gs.layout.cells(i) for i in complete)
     bar = _bar(sp.n_cells, done_cells, progress)
     try:
         _run(sp, gs.layout, todo, pool, gs.write_block, bar)
@@ -315,11 +349,6 @@ def _study(
     gs.finish({"run_time": started, "complete": True})
     info = RunInfo(gs.layout.n_blocks, len(todo), len(complete))
     return _dataset(sp, gs.read_all(), {**attrs, "run_time": started}), info
-
-
-def _cells(layout: Layout, index: int) -> int:
-    _, li, ri = layout.region(index)
-    return (li.stop - li.start) * (ri.stop - ri.start)
 
 
 def _open_store(

@@ -25,7 +25,8 @@ import numpy.typing as npt
 from ..._internal.types import RatioLike
 from ..._internal.validate import MODES, PROTOCOLS, as_fraction, as_int, as_probability, as_ratio
 from ...model.system import LinearSystem
-from .cells import MonteCarlo
+from .cells import ChannelAxes, MonteCarlo
+from .channel import channel_axes
 from .design import design
 
 #: The systems of a study: one, a list (named system0, system1, ...) or a dict by name.
@@ -52,7 +53,8 @@ _MC_KEYS = ("runs", "horizon", "seed", "mode", "protocol")
 
 @dataclass(frozen=True)
 class Spec:
-    """A validated study: names and systems, the three (or four) axes and the settings."""
+    """A validated study: names and systems, the axes and the settings. With ``channel`` the
+    cells are (system, mean, memory, ratio) and ``lam`` is empty."""
 
     names: tuple[str, ...]
     systems: tuple[LinearSystem, ...]
@@ -62,15 +64,18 @@ class Spec:
     family: str
     t_max: int
     montecarlo: MonteCarlo | None
+    channel: ChannelAxes | None = None
 
     @property
-    def shape(self) -> tuple[int, int, int]:
-        """(systems, lams, ratios)."""
+    def shape(self) -> tuple[int, ...]:
+        """(systems, lams, ratios), or (systems, means, memories, ratios) with ``channel``."""
+        if self.channel is not None:
+            return len(self.names), len(self.channel.mean), len(self.channel.memory), len(self.ratio)
         return len(self.names), len(self.lam), len(self.ratio)
 
     @property
     def n_cells(self) -> int:
-        """Cells of the grid (systems x lams x ratios)."""
+        """Cells of the grid (the product of :attr:`shape`)."""
         return math.prod(self.shape)
 
     def fingerprint(self) -> str:
@@ -93,6 +98,12 @@ class Spec:
             "t_max": self.t_max,
             "montecarlo": None if self.montecarlo is None else vars(self.montecarlo),
         }
+        if self.channel is not None:  # absent for lam grids, whose stores keep their fingerprint
+            doc["channel"] = {
+                "kind": self.channel.kind,
+                "mean": [x.hex() for x in self.channel.mean],
+                "memory": [x.hex() for x in self.channel.memory],
+            }
         return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
@@ -246,71 +257,96 @@ def _check_axes_meet(lam: tuple[float, ...], ratio: tuple[Fraction, ...]) -> Non
 
 def spec(
     systems: SystemsLike,
-    lam: npt.ArrayLike,
-    ratio: RatioAxis,
+    lam: npt.ArrayLike | None,
+    ratio: RatioAxis | None,
     beta: RatioAxis | None,
     family: str,
     t_max: int,
     montecarlo: Mapping[str, object] | None,
+    channel: Mapping[str, object] | None = None,
 ) -> Spec:
     """The validated study (see :func:`fakeack.study_grid` for the arguments)."""
     names, systems_ = _systems(systems)
-    lam_ = _lam_axis(lam)
+    if channel is not None and lam is not None:
+        raise ValueError(
+            "lam: give either a lam axis (the i.i.d. channel) or channel=dict(kind=..., mean=..., "
+            "memory=...), not both (memory 0 is the i.i.d. channel of lam = mean)"
+        )
+    if channel is None and lam is None:
+        raise ValueError("lam: missing (give a lam axis, or channel=dict(kind=..., mean=..., memory=...))")
+    if ratio is None:
+        raise ValueError("ratio: missing (give the energy ratios p/q)")
+    axes = channel_axes(channel, _values)
+    lam_ = () if lam is None else _lam_axis(lam)
     ratio_ = _ratio_axis(ratio)
     beta_ = _beta_axis(beta)
     family_ = _check_family(family)
     t_max_ = as_int("t_max", t_max, minimum=2, maximum=2**32 - 1)
     mc = _montecarlo(montecarlo, beta_, family_)
-    _check_axes_meet(lam_, ratio_)
-    return Spec(names, systems_, lam_, ratio_, beta_, family_, t_max_, mc)
+    if axes is None:
+        # Under a channel each cell designs its own schedule (the engine's bisection, about a
+        # millisecond): a cell without one says so in ``status`` rather than in an upfront check.
+        _check_axes_meet(lam_, ratio_)
+    return Spec(names, systems_, lam_, ratio_, beta_, family_, t_max_, mc, axes)
 
 
 @dataclass(frozen=True)
 class Layout:
-    """The grid tiled into blocks: one system and a (tile_lam x tile_ratio) rectangle each."""
+    """The grid tiled into blocks: one system and a rectangle of the other axes each.
 
-    shape: tuple[int, int, int]
-    tile: tuple[int, int]
+    ``shape`` is (systems, lams, ratios), or (systems, means, memories, ratios) under a channel;
+    ``tile`` is the block's extent along every axis but the first.
+    """
+
+    shape: tuple[int, ...]
+    tile: tuple[int, ...]
 
     @classmethod
     def for_spec(cls, sp: Spec, block: int | None, workers: int) -> Layout:
-        """Tiles of at most ``block`` cells (None: a size that keeps scheduling overhead small)."""
+        """Tiles of at most ``block`` cells (None: a size that keeps scheduling overhead small),
+        filled from the last axis (ratio) backwards."""
         if block is None:
             cells = _default_block(sp, workers)
         else:
             cells = as_int("block", block, minimum=1)
-        _, nl, nr = sp.shape
-        tr = min(nr, cells)
-        tl = max(1, min(nl, cells // tr))
-        return cls(sp.shape, (tl, tr))
+        tile: list[int] = []
+        for n in reversed(sp.shape[1:]):
+            t = max(1, min(n, cells))
+            tile.insert(0, t)
+            cells = max(1, cells // t)
+        return cls(sp.shape, tuple(tile))
 
     @property
-    def counts(self) -> tuple[int, int, int]:
-        """Blocks along system, lam and ratio."""
-        ns, nl, nr = self.shape
-        return ns, -(-nl // self.tile[0]), -(-nr // self.tile[1])
+    def counts(self) -> tuple[int, ...]:
+        """Blocks along each axis."""
+        return (self.shape[0], *(-(-n // t) for n, t in zip(self.shape[1:], self.tile, strict=True)))
 
     @property
     def n_blocks(self) -> int:
         """Number of blocks."""
         return math.prod(self.counts)
 
-    def region(self, index: int) -> tuple[slice, slice, slice]:
-        """The (system, lam, ratio) slices of block ``index`` (C order over the block grid)."""
-        _, bl, br = self.counts
-        s, rest = divmod(index, bl * br)
-        i, j = divmod(rest, br)
-        tl, tr = self.tile
-        return (
-            slice(s, s + 1),
-            slice(i * tl, min((i + 1) * tl, self.shape[1])),
-            slice(j * tr, min((j + 1) * tr, self.shape[2])),
+    def region(self, index: int) -> tuple[slice, ...]:
+        """The slices of block ``index`` along every axis (C order over the block grid)."""
+        pos = np.unravel_index(index, self.counts)
+        tiles = (1, *self.tile)
+        return tuple(
+            slice(int(i) * t, min((int(i) + 1) * t, n))
+            for i, t, n in zip(pos, tiles, self.shape, strict=True)
         )
+
+    def cells(self, index: int) -> int:
+        """Cells of block ``index``."""
+        return math.prod(r.stop - r.start for r in self.region(index))
 
 
 def _default_block(sp: Spec, workers: int) -> int:
-    """About 8 tasks per worker, each 256-8192 analytic cells (one second of Monte Carlo at most)."""
-    cells = min(8192, max(256, -(-sp.n_cells // (8 * max(1, workers)))))
+    """About 8 tasks per worker, each 256-8192 analytic cells (one second of Monte Carlo at most);
+    under a channel a cell takes tens of milliseconds, so 1-16 cells."""
+    if sp.channel is not None:
+        cells = min(16, max(1, -(-sp.n_cells // (8 * max(1, workers)))))
+    else:
+        cells = min(8192, max(256, -(-sp.n_cells // (8 * max(1, workers)))))
     if sp.montecarlo is not None:
         steps = sp.montecarlo.runs * sp.montecarlo.horizon * max(1, len(sp.beta))
         cells = min(cells, max(1, int(2e9 // steps)))

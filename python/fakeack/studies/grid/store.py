@@ -158,7 +158,7 @@ class GridStore:
         tile = tuple(cast("Sequence[int]", attrs.get("fakeack_tile", ())))  # written by this module
         if layout is not None and tuple(layout.tile) != tile:
             raise StoreError(
-                f"store {str(path)!r} is tiled in blocks of {tile[0]} x {tile[1]} (lam x ratio) cells; "
+                f"store {str(path)!r} is tiled in blocks of {' x '.join(map(str, tile))} cells; "
                 "resume it with block=None (or the block it was made with)"
             )
         store = cls(group, Layout(tuple(attrs["fakeack_shape"]), tile), variables, path)  # type: ignore[arg-type]
