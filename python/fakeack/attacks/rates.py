@@ -3,6 +3,8 @@ sensor, genuine or forged, cost it in energy."""
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 from .. import _fakeack
 from .._internal.validate import as_real
 from ..model.channels import Channel, ChannelLike, is_paper_channel
@@ -12,6 +14,7 @@ from .automata import AttackerAutomaton, MimicryAttack
 from .kinds import Attack, AttackLike, EngineOnlyAttack, FlagInjection, as_attack, core_attack
 
 __all__ = [
+    "FlagRates",
     "high_power_rate",
     "online_high_power_rate",
     "energy_per_step",
@@ -21,6 +24,22 @@ __all__ = [
 
 #: What the rates take as an attack: any built-in spelling, or an automaton of the engine.
 AnyAttack = AttackLike | MimicryAttack | AttackerAutomaton
+
+
+class FlagRates(NamedTuple):
+    """Long-run flag-ACKs per step (see :func:`flag_rates`)."""
+
+    sent: float
+    """Genuine flag-ACKs sent by the remote detector."""
+    delivered: float
+    """Flag-ACKs reaching the sensor, genuine or forged: the sensor's high-power rate."""
+    forged: float
+    """Forged flag-ACKs (part of ``delivered``)."""
+
+    @property
+    def blocked(self) -> float:
+        """Genuine flag-ACKs that did not reach the sensor: ``sent - (delivered - forged)``."""
+        return self.sent - (self.delivered - self.forged)
 
 
 def structured_route(ch: Channel, attack: object) -> bool:

@@ -7,7 +7,9 @@
 
 :func:`detection_probability` gives the probability that either test raises an alarm in one window
 under any attack (``None``: the false-alarm rate), from the exact laws of
-``fakeack.detection.intervals`` and the stated normal approximations.
+``fakeack.detection.intervals`` and the stated normal approximations. :func:`flag_process` gives
+the delivered flag-ACKs on any channel as a Markov arrival process over the exact engine's
+automaton: their rate, variance rate and the exact count law of a window.
 
 (Over 450 lines: both tests and their power share the gap-law bins and moments; the
 detection_probability part is the next to move to a module of its own.)
@@ -18,6 +20,7 @@ from .flags import FlagRates, delivered_flag_rate, estimate_beta, flag_interval_
 from .interval_test import IntervalDetection, IntervalTest, detect_intervals, interval_test
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
 from .probability import TESTS, DetectionRates, detection_probability, detection_rates
+from .process import FlagProcess, flag_process
 
 __all__ = [
     "flag_interval_moments",
@@ -42,4 +45,6 @@ __all__ = [
     "detection_probability",
     "DetectionRates",
     "detection_rates",
+    "FlagProcess",
+    "flag_process",
 ]

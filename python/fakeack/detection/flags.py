@@ -4,14 +4,13 @@ moments of the gaps between them, and the blocked fraction estimated from a coun
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
 
 import numpy as np
 
 from .. import _fakeack
 from .._internal.validate import as_int
 from ..attacks.kinds import AttackLike, as_attack, core_attack
-from ..attacks.rates import AnyAttack, engine_for, high_power_rate, structured_route
+from ..attacks.rates import AnyAttack, FlagRates, engine_for, high_power_rate, structured_route
 from ..model.channels import ChannelLike
 from ..model.exact import channel_of
 from ..model.schedules import OnlineDesign, check_online, check_online_channel
@@ -86,22 +85,6 @@ def flag_interval_moments(lam: float, z0: int, mu: float = 1.0) -> tuple[float, 
     if not math.isfinite(second):
         return 1.0 + mean_t, math.inf
     return 1.0 + mean_t, max(second - mean_t * mean_t, 0.0)
-
-
-class FlagRates(NamedTuple):
-    """Long-run flag-ACKs per step (see :func:`flag_rates`)."""
-
-    sent: float
-    """Genuine flag-ACKs sent by the remote detector."""
-    delivered: float
-    """Flag-ACKs reaching the sensor, genuine or forged: the sensor's high-power rate."""
-    forged: float
-    """Forged flag-ACKs (part of ``delivered``)."""
-
-    @property
-    def blocked(self) -> float:
-        """Genuine flag-ACKs that did not reach the sensor: ``sent - (delivered - forged)``."""
-        return self.sent - (self.delivered - self.forged)
 
 
 def flag_rates(

@@ -27,7 +27,7 @@ from .._internal.html import key_values
 from .._internal.validate import as_int, as_real
 from ..attacks.automata import AttackerAutomaton, MimicryAttack, Transition
 from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack, core_attack
-from ..detection.flags import FlagRates
+from ..attacks.rates import FlagRates
 from ..model.channels import Channel, as_channel
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
