@@ -244,13 +244,18 @@ def test_detect_attack_level_is_strict():
 
 
 def test_detect_attack_window_limits():
-    """A window of one step is valid (expected n/m = 1/7 flags; no flag in it estimates β = 1);
-    an empty or negative window, or a negative count, is refused as such.
+    """A window in which at least one flag-ACK is expected without attack is valid (no flag in it
+    estimates β = 1); a shorter one says nothing about β and is refused, naming n_steps, as is an
+    empty or negative window or a negative count.
 
     Kills: the window's minimum 1 removed (a negative window would fail on a square root), or
     raised to 2, in detect_attack and estimate_beta; the count's minimum 0 removed in
-    estimate_beta (β̂ would be clipped to 1)."""
-    assert fa.detect_attack(0, 1, 0.5, 2).expected == pytest.approx(1 / 7, rel=1e-14)
+    estimate_beta (β̂ would be clipped to 1); the expected-count floor dropped or off by one."""
+    assert fa.detect_attack(0, 7, 0.5, 2).expected == pytest.approx(1.0, rel=1e-14)  # rate 1/7
+    with pytest.raises(ValueError, match="n_steps = 6: fewer than one flag-ACK is expected"):
+        fa.detect_attack(0, 6, 0.5, 2)
+    with pytest.raises(ValueError, match="n_steps = 1: fewer than one flag-ACK"):
+        fa.estimate_beta(0, 1, 0.5, 2)
     for n in (0, -5):
         with pytest.raises(ValueError, match="n_steps must be at least 1"):
             fa.detect_attack(0, n, 0.5, 2)
@@ -258,9 +263,14 @@ def test_detect_attack_window_limits():
         fa.estimate_beta(0, 0, 0.5, 2)
     with pytest.raises(ValueError, match="delivered must be at least 0"):
         fa.estimate_beta(-1, 10, 0.5, 2)
-    # No flag-ACK at all: every flag blocked, β̂ = 1 exactly, from one step on.
+    # No flag-ACK at all: every flag blocked, β̂ = 1 exactly, from the shortest valid window on.
     for lam, z0, mu in [(0.5, 2, 1.0), (0.3, 3, 0.4), (0.8, 1, 0.0), (0.45, 5, 0.7), (0.1, 2, 0.25)]:
-        assert fa.estimate_beta(0, 1, lam, z0, mu) == 1.0
+        m, _ = fa.flag_interval_moments(lam, z0, mu)  # the attack-free rate is 1/m
+        n = math.ceil(m - 1e-9)  # m = 31 exactly at (0.8, 1, 0), up to rounding
+        assert fa.estimate_beta(0, n, lam, z0, mu) == 1.0
+        if n > 1:
+            with pytest.raises(ValueError, match="fewer than one flag-ACK"):
+                fa.estimate_beta(0, n - 1, lam, z0, mu)
 
 
 def test_delivered_rate_uses_mu():

@@ -347,3 +347,12 @@ def test_detection_probability_bad_input():
         fa.detection_probability(0.5, 2, None, 0, 0.01)
     with pytest.raises(ValueError, match="alpha"):
         fa.detection_probability(0.5, 2, None, 100, float("nan"))
+
+
+def test_a_forger_on_every_quiet_step_is_seen_by_both_tests():
+    """FlagInjection(1.0) forges on every step without a genuine flag, so the sensor receives a
+    flag-ACK every step: every gap is 1 step, where the attack-free gaps are at least z0 + 1 = 3,
+    and the count is n where about n/7 are expected. Both tests alarm surely; the interval test's
+    degenerate quadratic form (no random gap at all) once crashed here."""
+    for test in ("interval", "count"):
+        assert fa.detection_probability(0.5, 2, fa.FlagInjection(1.0), 1000, 0.01, test=test) == 1.0

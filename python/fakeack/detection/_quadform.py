@@ -60,7 +60,7 @@ def tail(lam: npt.ArrayLike, b: npt.ArrayLike, delta: npt.ArrayLike, x: npt.Arra
     delta_a = np.broadcast_to(np.asarray(delta, dtype=np.float64), lam_a.shape[:1]).copy()
     x_a = np.broadcast_to(np.asarray(x, dtype=np.float64), lam_a.shape[:1]).copy()
     out = np.empty(lam_a.shape[0])
-    top = lam_a.max(axis=1)
+    top = lam_a.max(axis=1, initial=0.0)  # rows of no weight at all (e.g. no random gap) are constants
     constant = top <= 0.0
     out[constant] = (delta_a[constant] > x_a[constant]).astype(float)
     below = ~constant & (x_a <= delta_a)

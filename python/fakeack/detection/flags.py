@@ -175,15 +175,19 @@ def regime_rates(lam: float, design: OnlineDesign) -> tuple[float, float]:
 
 
 def estimate_beta(delivered: int, n_steps: int, lam: float, z0: int, mu: float = 1.0) -> float:
-    r"""Estimate the attacker's budget β from the delivered flag-ACK rate.
+    r"""Estimate the attacker's budget β from the delivered flag-ACK rate (maximum likelihood).
 
     In the large-period model (the attacker blocks long runs), a fraction β of flags falls in the
     all-blocked regime (flag rate :math:`f_{blk} = \lambda u/(1-u)`) and 1-β in the unattacked one
     (:math:`f_{on}`), so the delivered rate is
-    :math:`\rho(\beta) = (1-\beta)/(\beta/f_{blk} + (1-\beta)/f_{on})`, decreasing in β. Inverting
-    at the observed rate gives
-    :math:`\hat\beta = (1 - \hat\rho/f_{on}) / (1 + \hat\rho/f_{blk} - \hat\rho/f_{on})`, clipped to
-    [0, 1]. It assumes the observation window spans many attack periods; for the paper's short
+    :math:`\rho(\beta) = (1-\beta)/(\beta/f_{blk} + (1-\beta)/f_{on})`, decreasing in β. The
+    count's rate is the model's one parameter and :math:`\hat\rho = N/n` its maximum-likelihood
+    estimate, so by invariance the maximum-likelihood β on [0, 1] is :math:`\rho^{-1}(\hat\rho)`
+    clipped to [0, 1]:
+    :math:`\hat\beta = (1 - \hat\rho/f_{on}) / (1 + \hat\rho/f_{blk} - \hat\rho/f_{on})`. A
+    window in which fewer than one flag-ACK is expected without attack
+    (:math:`n f_{on} < 1`) carries no information on β (no flag is what the sensor expects
+    anyway), and is refused rather than answered with β = 1. It assumes the observation window spans many attack periods; for the paper's short
     patterns the model is close (1000-step windows: mean estimate 0.203 at r/t = 1/5, 0.669 at 2/3);
     :func:`detection_rates` reports the simulated mean and spread.
 
@@ -210,6 +214,12 @@ def estimate_beta(delivered: int, n_steps: int, lam: float, z0: int, mu: float =
         raise ValueError(
             f"z0: flag-ACKs are too rare to estimate beta (attack-free rate {f_on:.3g} per step "
             f"at lam={lam}, z0={design.z0})"
+        )
+    if n * f_on < 1.0 - 1e-12:  # (not a rounding of exactly one expected flag)
+        raise ValueError(
+            f"n_steps = {n}: fewer than one flag-ACK is expected in the window without attack "
+            f"({n * f_on:.3g} at lam={lam}, z0={design.z0}), so its count says nothing about beta; "
+            "use a longer window"
         )
     rho = d / n
     if rho >= f_on:  # at least the attack-free rate (the formula's denominator can vanish here)

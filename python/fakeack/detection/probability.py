@@ -17,7 +17,7 @@ from ..attacks.kinds import Attack, AttackLike, as_attack, core_attack
 from ..model.schedules import OnlineDesign, check_online
 from . import _quadform
 from .count import alarm_bounds, check_alternative, harmful_bound
-from .flags import estimate_beta
+from .flags import delivered_flag_rate, estimate_beta
 from .interval_test import IntervalTest, cached_interval_test
 from .intervals import design_walk
 
@@ -374,7 +374,8 @@ class DetectionRates:
     detection: float
     """Fraction of attacked windows flagged."""
     beta_hat_mean: float
-    """Mean of :func:`estimate_beta` over the attacked windows."""
+    """Mean of :func:`estimate_beta` over the attacked windows; NaN (as ``beta_hat_std``) for a
+    window in which fewer than one flag-ACK is expected without attack, where it is undefined."""
     beta_hat_std: float
     beta: float
     """The attack's budget (the blocking part's, for an injection)."""
@@ -466,13 +467,16 @@ def detection_rates(
         p = float(np.mean(alarms))
         flagged[name], se[name] = p, math.sqrt(max(p * (1 - p), 0.0) / runs)
         delivered = counts
-    betas = np.array([estimate_beta(int(c), n, lam, design.z0, design.mu) for c in delivered])
+    beta_mean = beta_std = math.nan  # a window too short to estimate beta (documented)
+    if n * delivered_flag_rate(lam, design.z0, None, design.mu) >= 1.0 - 1e-12:
+        betas = np.array([estimate_beta(int(c), n, lam, design.z0, design.mu) for c in delivered])
+        beta_mean, beta_std = float(betas.mean()), float(betas.std(ddof=1))
     beta = float(att.beta)
     return DetectionRates(
         flagged["clean"],
         flagged["attacked"],
-        float(betas.mean()),
-        float(betas.std(ddof=1)),
+        beta_mean,
+        beta_std,
         beta,
         runs,
         n,
