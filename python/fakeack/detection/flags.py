@@ -187,8 +187,9 @@ def estimate_beta(delivered: int, n_steps: int, lam: float, z0: int, mu: float =
     :math:`\hat\beta = (1 - \hat\rho/f_{on}) / (1 + \hat\rho/f_{blk} - \hat\rho/f_{on})`. A
     window in which fewer than one flag-ACK is expected without attack
     (:math:`n f_{on} < 1`) carries no information on β (no flag is what the sensor expects
-    anyway), and is refused rather than answered with β = 1. It assumes the observation window spans many attack periods; for the paper's short
-    patterns the model is close (1000-step windows: mean estimate 0.203 at r/t = 1/5, 0.669 at 2/3);
+    anyway), and is refused rather than answered with β = 1. It assumes the observation window
+    spans many attack periods; for the paper's short patterns the model is close (1000-step
+    windows: mean estimate 0.203 at r/t = 1/5, 0.669 at 2/3);
     :func:`detection_rates` reports the simulated mean and spread.
 
     Parameters
@@ -203,6 +204,17 @@ def estimate_beta(delivered: int, n_steps: int, lam: float, z0: int, mu: float =
         Memory length of the event detector.
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
+
+    Returns
+    -------
+    float
+        The estimate, in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        For a bad argument (naming it), a count above ``n_steps``, or a window in which fewer than
+        one flag-ACK is expected without attack (naming ``n_steps``).
     """
     lam, design = check_online(lam, z0, mu)
     n = as_int("n_steps", n_steps, minimum=1)
