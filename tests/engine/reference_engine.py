@@ -332,7 +332,18 @@ class Solution:
             k0, k1 = K0[cl][:, cl], K1[cl][:, cl]
             self._check_arrivals(k0, k1)
             classes.append((alpha, cl, k0, k1, spectral_radius(k0)))
-        self.rho_k0 = max(c[-1] for c in classes)
+        # J is the long-run mean of E Tr P_k, so transient states count too: a loss loop among
+        # them that the chain leaves with probability rho_T^k only, while the trace grows like
+        # rho(A)^(2k), makes E Tr P_k diverge even though almost every path ends in a closed
+        # class (the closed classes' radii alone would miss it).
+        # K0 is block triangular (closed classes never lead back), so its spectrum is that of the
+        # transient block and the classes' blocks.
+        closed = np.zeros(K0.shape[0], dtype=bool)
+        for _, cl, *_ in classes:
+            closed[cl] = True
+        transient = np.flatnonzero(~closed)
+        rho_t = spectral_radius(K0[transient][:, transient]) if transient.size else 0.0
+        self.rho_k0 = max(max(c[-1] for c in classes), rho_t)
         self.index = self.rho_k0 * rho_a2
         if self.index >= 1.0:
             self.infinite = True

@@ -323,3 +323,26 @@ def test_rate_matching_with_min_gap_through_the_stand_in(fake):
 
 def test_rate_matching_with_min_gap():
     check_rate_matching(fa.rate_matching_attack(0.5, 2, 0.3, min_gap=3), 2)
+
+
+def test_a_transient_loss_loop_makes_the_expected_cost_infinite():
+    """A case the property test found. The channel never delivers a low-power packet; the
+    attacker blocks every genuine flag and, once it has seen one, forges on every quiet step, which
+    from then on keeps the sensor at high power for good (a closed class where every packet
+    arrives, J = Tr P̄ on every path that gets there). Before that, a loss loop among transient
+    states is left with probability about 0.76^k after k steps while the trace grows like
+    1.44^k, so E Tr P_k grows like 1.095^k: J, the long-run mean of E Tr P_k, is infinite, though
+    almost every path's own average tends to Tr P̄."""
+    ch = fa.MarkovChannel([[1.0]], [0.0], [1.0])
+    aut = fa.AttackerAutomaton(
+        {
+            0: {"flag": [(1.0, False, 1)], "quiet": [(1.0, False, 0)]},
+            1: {"flag": [(1.0, False, 0)], "quiet": [(1.0, True, 1)]},
+        }
+    )
+    sc = fa.Scenario(fa.LinearSystem(1.2, 1.0, 1.0, 1.0), ch, fa.OnlineDesign(1, 0.5), aut)
+    # The transient loss loop 1 -> 2 -> 1, 1 -> 3 -> 2 -> 1 of K0, each of probability 1/4: its
+    # spectral radius is the root of x^3 = x/4 + 1/4.
+    rho = max(abs(np.roots([1.0, 0.0, -0.25, -0.25])))
+    assert_allclose(sc.stability_index(), rho * 1.44, rtol=1e-10)
+    assert sc.cost() == math.inf
