@@ -5,9 +5,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
+from typing import Any
 
+import numpy as np
 from scipy.special import ndtr
 
+from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
 from ..model.schedules import OnlineDesign, check_online
 from .flags import estimate_beta, flag_interval_moments, regime_rates
@@ -63,9 +67,66 @@ def count_alarm_bounds(
     return alarm_bounds(lam, design, n, as_probability("alpha", alpha), check_alternative(alternative))
 
 
+#: Below this many expected flag-ACKs per window the count test uses the exact count law (the
+#: renewal normal approximation is off in the tails there; a window of 200 steps of the paper's
+#: example expects 29).
+EXACT_BELOW = 100
+
+
+def uses_exact_law(n: int, lam: float, design: OnlineDesign) -> bool:
+    """Whether the count test of this window uses the exact attack-free count law."""
+    m, _ = flag_interval_moments(lam, design.z0, design.mu)
+    return math.isfinite(m) and n / m < EXACT_BELOW
+
+
+@lru_cache(maxsize=256)
+def exact_count_law(n: int, lam: float, design: OnlineDesign, attack: Any = None) -> FloatArray:
+    """P(N = c), c = 0.., of a stationary window's count (:meth:`fakeack.FlagProcess.count_law`)."""
+    from .process import flag_process
+
+    return flag_process(lam, design, attack).count_law(n)
+
+
+def exact_p_value(law: FloatArray, d: int, alternative: str) -> float:
+    """The count test's exact p-value of the count ``d`` under the attack-free ``law``."""
+    below = float(law[: d + 1].sum())  # P(N <= d)
+    above = float(law[d:].sum()) if d < len(law) else 0.0  # P(N >= d)
+    if alternative == "less":
+        return min(below, 1.0)
+    if alternative == "greater":
+        return min(above, 1.0)
+    return float(min(1.0, 2.0 * min(below, above)))
+
+
+def _exact_bounds(law: FloatArray, n: int, alpha: float, alternative: str) -> tuple[int, int]:
+    """The alarm region of the exact test: the counts whose exact p-value is below alpha."""
+    lo, hi = -1, n + 1
+    mean = float(np.arange(len(law)) @ law)
+    for d in range(0, min(n, math.floor(mean)) + 1):  # p-values fall away from the mean
+        if alternative != "greater" and exact_p_value(law, d, alternative) < alpha:
+            lo = d
+    # From n down (counts past the law's support, of probability below 1e-300, have p-value 0).
+    for d in range(min(n, len(law)), max(0, math.ceil(mean)) - 1, -1):
+        if alternative != "less" and exact_p_value(law, d, alternative) < alpha:
+            hi = d
+    return lo, hi
+
+
+def exact_alarm_probability(bounds: tuple[int, int], law: FloatArray, harm: int | None) -> float:
+    """P(count alarm) under the exact count ``law``; with ``harm``, only alarms with N <= harm."""
+    lo, hi = bounds
+    top = len(law) - 1 if harm is None else min(harm, len(law) - 1)
+    p = float(law[: min(lo, top) + 1].sum()) if lo >= 0 else 0.0
+    if hi <= top:
+        p += float(law[hi : top + 1].sum())
+    return min(max(p, 0.0), 1.0)
+
+
 def alarm_bounds(lam: float, design: OnlineDesign, n: int, alpha: float, alternative: str) -> tuple[int, int]:
     """:func:`count_alarm_bounds` of a validated schedule, window, level and alternative."""
     count_law(n, lam, design)  # ValueError naming z0 when flags are too rare to test
+    if uses_exact_law(n, lam, design):
+        return _exact_bounds(exact_count_law(n, lam, design), n, alpha, alternative)
     m, v = flag_interval_moments(lam, design.z0, design.mu)
 
     def alarm(d: int, side: str) -> bool:
@@ -151,9 +212,13 @@ class Detection:
     z_score: float
     """(observed - expected delivered flags) / standard deviation under no attack."""
     p_value: float
-    """P[a count at least this extreme | no attacker] (normal approximation): as few flags for
-    ``alternative="less"``, as many for ``"greater"``, either for ``"two-sided"``."""
+    """P[a count at least this extreme | no attacker]: as few flags for ``alternative="less"``,
+    as many for ``"greater"``, either for ``"two-sided"``; exact (the count law of
+    :meth:`fakeack.FlagProcess.count_law`) below 100 expected flag-ACKs per window, the normal
+    approximation above."""
     beta_hat: float
+    """:func:`fakeack.estimate_beta` of the count; NaN where fewer than one flag-ACK is expected
+    without attack (the window carries no information on the budget)."""
     delivered: int
     expected: float
     n_steps: int
@@ -175,7 +240,10 @@ def detect_attack(
     Without attack, inter-flag intervals are i.i.d. with mean m and variance v
     (:func:`flag_interval_moments`), so by the renewal central limit theorem the count N over n
     steps is approximately :math:`\mathcal N(n/m,\, n v/m^3)`, and
-    :math:`z = (N - n/m)/\sqrt{n v/m^3}`. Blocking removes flags, forging adds them: with
+    :math:`z = (N - n/m)/\sqrt{n v/m^3}`. Where fewer than 100 flag-ACKs are expected per window
+    (n/m < 100) that approximation is off in the tails, and the p-value is the exact one of the
+    stationary count law (:meth:`fakeack.FlagProcess.count_law`, a forward recursion over the
+    engine's automaton). Blocking removes flags, forging adds them: with
     ``alternative="less"`` (the default) "no attacker" is rejected at level α when
     :math:`\Phi(z) < \alpha`, with ``"greater"`` when :math:`\Phi(-z) < \alpha`, with
     ``"two-sided"`` when :math:`2\min(\Phi(z), \Phi(-z)) < \alpha` (the alternatives of
@@ -203,6 +271,10 @@ def detect_attack(
     expected, _ = count_law(n, lam, design)  # ValueError when flags are too rare to test
     m, v = flag_interval_moments(lam, design.z0, design.mu)
     z = count_z(d, n, m, v)
-    p = count_p_value(z, alternative)
-    beta = estimate_beta(d, n, lam, design.z0, design.mu)
+    if uses_exact_law(n, lam, design):
+        p = exact_p_value(exact_count_law(n, lam, design), d, alternative)
+    else:
+        p = count_p_value(z, alternative)
+    # Fewer than one expected flag-ACK: the count can still show forging, but not a budget.
+    beta = estimate_beta(d, n, lam, design.z0, design.mu) if expected >= 1.0 - 1e-12 else math.nan
     return Detection(p < alpha, z, p, beta, d, expected, n, alpha, alternative)

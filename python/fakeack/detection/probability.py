@@ -16,7 +16,14 @@ from .._internal.validate import as_int, as_probability, as_real
 from ..attacks.kinds import Attack, AttackLike, as_attack, core_attack
 from ..model.schedules import OnlineDesign, check_online
 from . import _quadform
-from .count import alarm_bounds, check_alternative, harmful_bound
+from .count import (
+    alarm_bounds,
+    check_alternative,
+    exact_alarm_probability,
+    exact_count_law,
+    harmful_bound,
+    uses_exact_law,
+)
 from .flags import delivered_flag_rate, estimate_beta
 from .interval_test import IntervalTest, cached_interval_test
 from .intervals import design_walk
@@ -93,6 +100,8 @@ def _count_probability(
     harm: int | None,
 ) -> float:
     bounds = alarm_bounds(lam, design, n, alpha, alternative)
+    if uses_exact_law(n, lam, design):
+        return exact_alarm_probability(bounds, exact_count_law(n, lam, design, attack), harm)
     return count_alarm_probability(bounds, n, count_moments(lam, design, n, attack), harm)
 
 

@@ -165,7 +165,8 @@ class FlagProcess:
         if self.n_states * n * (top + 1) > MAX_LAW_WORK:
             raise ValueError(
                 f"n_steps = {n}: the exact count law needs about {self.n_states * n * top:.2g} operations "
-                f"over {self.n_states} automaton states; use count_moments (a normal approximation)"
+                f"over {self.n_states} automaton states, more than {MAX_LAW_WORK:.0e}; count_moments gives "
+                "its exact mean and variance"
             )
         f = np.zeros((self.n_states, top + 2))
         f[:, 0] = self._start(start)
