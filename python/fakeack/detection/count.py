@@ -124,7 +124,7 @@ def exact_alarm_probability(bounds: tuple[int, int], law: FloatArray, harm: int 
 
 def alarm_bounds(lam: float, design: OnlineDesign, n: int, alpha: float, alternative: str) -> tuple[int, int]:
     """:func:`count_alarm_bounds` of a validated schedule, window, level and alternative."""
-    count_law(n, lam, design)  # ValueError naming z0 when flags are too rare to test
+    renewal_moments(n, lam, design)  # ValueError naming z0 when flags are too rare to test
     if uses_exact_law(n, lam, design):
         return _exact_bounds(exact_count_law(n, lam, design), n, alpha, alternative)
     m, v = flag_interval_moments(lam, design.z0, design.mu)
@@ -138,7 +138,12 @@ def alarm_bounds(lam: float, design: OnlineDesign, n: int, alpha: float, alterna
         return count_p_value(z, alternative) < alpha
 
     # p-values are monotone on each side of the mean; bisection on integers.
-    mean = n / m
+    return _bisect_bounds(alarm, n, n / m, alternative)
+
+
+def _bisect_bounds(alarm: Any, n: int, mean: float, alternative: str) -> tuple[int, int]:
+    """The integer alarm region (lo, hi) of a test whose p-value is monotone on each side of the
+    mean: ``alarm(d, side)`` says whether count d alarms; bisection on integers."""
     lo = -1
     if alternative != "greater":
         a, b = -1, min(n, math.floor(mean))  # alarm(a) holds by convention, look for the last
@@ -159,6 +164,24 @@ def alarm_bounds(lam: float, design: OnlineDesign, n: int, alpha: float, alterna
     return lo, hi
 
 
+def process_alarm_bounds(process: Any, n: int, alpha: float, alternative: str) -> tuple[int, int]:
+    """The count test's alarm region for the attack-free flag process of any channel
+    (:func:`fakeack.flag_process`): the exact law below :data:`EXACT_BELOW` expected flag-ACKs,
+    else the normal law with the window's exact mean and variance (stationary start)."""
+    if n * process.rate < EXACT_BELOW:
+        return _exact_bounds(process.count_law(n), n, alpha, alternative)
+    mean, var = process.count_moments(n)
+    sd = math.sqrt(var)
+
+    def alarm(d: int, side: str) -> bool:
+        z = (d - mean) / sd if sd > 0 else math.copysign(math.inf, d - mean) if d != mean else 0.0
+        if (side == "low" and z >= 0) or (side == "high" and z <= 0):
+            return False
+        return count_p_value(z, alternative) < alpha
+
+    return _bisect_bounds(alarm, n, mean, alternative)
+
+
 def harmful_count_bound(lam: float, z0: int, n_steps: int, beta_bar: float, mu: float = 1.0) -> int:
     """Largest count N whose estimated budget (:func:`fakeack.estimate_beta`) exceeds ``beta_bar``.
 
@@ -173,6 +196,11 @@ def harmful_count_bound(lam: float, z0: int, n_steps: int, beta_bar: float, mu: 
 def harmful_bound(lam: float, design: OnlineDesign, n: int, bb: float) -> int:
     """:func:`harmful_count_bound` of a validated schedule, window and threshold."""
     f_on, f_blk = regime_rates(lam, design)
+    return rates_harmful_bound(f_on, f_blk, n, bb)
+
+
+def rates_harmful_bound(f_on: float, f_blk: float, n: int, bb: float) -> int:
+    """:func:`harmful_count_bound` from the flag rates unattacked and all blocked (any channel)."""
 
     def beta_hat(d: int) -> float:  # fakeack.estimate_beta's formula
         rho = d / n
@@ -192,7 +220,7 @@ def harmful_bound(lam: float, design: OnlineDesign, n: int, bb: float) -> int:
     return a
 
 
-def count_law(n: int, lam: float, design: OnlineDesign) -> tuple[float, float]:
+def renewal_moments(n: int, lam: float, design: OnlineDesign) -> tuple[float, float]:
     """Mean n/m and standard deviation sqrt(n v / m^3) of the attack-free flag count in n steps
     (renewal CLT); ValueError when the interval moments exceed the double range."""
     m, v = flag_interval_moments(lam, design.z0, design.mu)
@@ -268,7 +296,7 @@ def detect_attack(
     d = as_int("delivered", delivered, minimum=0)
     alpha = as_probability("alpha", alpha)
     alternative = check_alternative(alternative)
-    expected, _ = count_law(n, lam, design)  # ValueError when flags are too rare to test
+    expected, _ = renewal_moments(n, lam, design)  # ValueError when flags are too rare to test
     m, v = flag_interval_moments(lam, design.z0, design.mu)
     z = count_z(d, n, m, v)
     if uses_exact_law(n, lam, design):
