@@ -8,14 +8,16 @@ from dataclasses import dataclass
 from typing import TypeAlias
 
 import numpy as np
-from scipy.special import ndtr
 
 from .. import _fakeack
 from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
+from ..attacks._args import required
 from ..attacks.kinds import Attack, AttackLike, as_attack, core_attack
-from ..model.schedules import OnlineDesign, check_online
+from ..model.channels import ChannelLike, channel_argument, is_paper_channel
+from ..model.schedules import OnlineDesign, check_online, check_online_channel
 from . import _quadform
+from .belief import belief_probability, count_alarm_probability, count_moments
 from .count import (
     alarm_bounds,
     check_alternative,
@@ -55,39 +57,6 @@ def check_test(test: object) -> str:
 
 # ---------------------------------------------------------------------------------------------
 # Detection probabilities.
-
-
-def count_moments(lam: float, design: OnlineDesign, n: int, attack: Attack | None) -> tuple[float, float]:
-    """(mean, sd) of a stationary window's count under the attack (:func:`flag_count_moments`)."""
-    w = design_walk(lam, design, attack)
-    if w.endless:
-        return 0.0, 0.0
-    _, sig = w.time_covariance(np.array([1]))
-    return n / w.mean, math.sqrt(max(n * float(sig[0, 0]), 0.0))
-
-
-def count_alarm_probability(
-    bounds: tuple[int, int], n: int, moments: tuple[float, float], harm: int | None
-) -> float:
-    """P(count alarm) for a normal count with continuity correction; with ``harm``, only alarms
-    with N <= harm (an estimated budget above β̄)."""
-    lo, hi = bounds
-    mean, sd = moments
-    if harm is not None:
-        hi_region = (hi, harm) if hi <= harm else None
-        lo = min(lo, harm)
-    else:
-        hi_region = (hi, n)
-
-    def cdf(k: float) -> float:  # P(N <= k)
-        if sd == 0.0:
-            return float(mean <= k + 0.5)
-        return float(ndtr((k + 0.5 - mean) / sd))
-
-    p = cdf(lo) if lo >= 0 else 0.0
-    if hi_region is not None and hi_region[0] <= n:
-        p += cdf(hi_region[1]) - cdf(hi_region[0] - 1)
-    return min(max(p, 0.0), 1.0)
 
 
 def _count_probability(
@@ -240,16 +209,19 @@ def _joint_tail(test: IntervalTest, attack: AttackLike, s_hi: float) -> float:
 
 
 def detection_probability(
-    lam: float,
-    z0: int,
-    attack: AttackLike,
-    n_steps: int,
-    alpha: float,
+    channel: ChannelLike | None = None,
+    z0: int | None = None,
+    attack: AttackLike = None,
+    n_steps: int | None = None,
+    alpha: float | None = None,
     test: str = "count",
     alternative: str = "two-sided",
     mu: float = 1.0,
     *,
     beta_bar: float | None = None,
+    true_channel: ChannelLike | None = None,
+    lam_range: tuple[float, float] | None = None,
+    lam: float | None = None,
 ) -> float:
     r"""Probability that the sensor's test raises an alarm in one window of ``n_steps`` steps.
 
@@ -269,10 +241,21 @@ def detection_probability(
     Both are large-sample approximations (many flags per window); the tests check them against
     the closed-loop Monte Carlo (:func:`fakeack.detection_rates`).
 
+    **Belief and truth.** The test is calibrated on ``channel``, the channel the sensor believes
+    in; ``true_channel`` (any channel) gives the alarm probability when the truth differs, e.g.
+    a sensor that assumes lam = 0.5 on a channel of 0.48, or one that assumes i.i.d. losses on a
+    bursty channel. With ``lam_range=(lo, hi)`` the sensor knows only that lam lies in the range
+    and alarms where the count test of every lam of the range alarms (at 9 points, ends
+    included), so its false-alarm rate is at most alpha at each of them. Under a Markov belief
+    or truth the count law comes from :func:`fakeack.flag_process` (exact below 100 expected
+    flag-ACKs, else normal with the window's exact moments); only the count test is computed
+    there.
+
     Parameters
     ----------
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The channel the test is calibrated on (a float: the paper's channel of that low-power
+        arrival probability).
     z0 : int
         Memory length of the event detector.
     attack : None or attack
@@ -291,7 +274,14 @@ def detection_probability(
     beta_bar : float, optional
         Count only alarms whose estimated budget (:func:`fakeack.estimate_beta` of the window's
         count) exceeds ``beta_bar``: the harmful alarms of a sensor that falls back only from
-        harmful attacks.
+        harmful attacks (the paper's channel, belief equal to the truth).
+    true_channel : Channel or float, optional
+        The channel the window is played on (default ``channel``).
+    lam_range : (float, float), optional
+        The range of lam the sensor allows for (the paper's channel; ``channel`` is then only
+        its default truth).
+    lam : float, optional
+        The former name of ``channel`` (a float); giving both is a ``TypeError``.
 
     Returns
     -------
@@ -303,12 +293,19 @@ def detection_probability(
     >>> 0.005 < p < 0.015
     True
     """
-    lam, design = check_online(lam, z0, mu)
+    ch, name = channel_argument(channel, lam, "detection_probability")
+    if true_channel is not None or lam_range is not None or not is_paper_channel(ch):
+        return belief_probability(
+            ch, name, z0, attack, n_steps, alpha, test, alternative, mu, beta_bar, true_channel, lam_range
+        )
+    lam_, design = check_online_channel(ch, name, z0, mu, "detection_probability")
+    lam_, design = check_online(lam_, design.z0, design.mu)
     att = as_attack(attack)
-    n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
-    alpha = as_probability("alpha", alpha)
+    n = as_int("n_steps", required("detection_probability", "n_steps", n_steps), minimum=1, maximum=10**9)
+    alpha = as_probability("alpha", required("detection_probability", "alpha", alpha))
     test = check_test(test)
     alternative = check_alternative(alternative)
+    lam = lam_
     harm = None if beta_bar is None else harmful_bound(lam, design, n, as_real("beta_bar", beta_bar))
     if test == "count":
         return _count_probability(lam, design, n, alpha, alternative, att, harm)

@@ -15,12 +15,17 @@ from ..attacks.chain import j_attack
 from ..attacks.kinds import Attack, AttackLike, PeriodicBlocking, as_attack
 from ..attacks.rates import design_high_power_rate
 from ..attacks.threshold import choose_schedule
-from ..detection.count import alarm_bounds, harmful_bound
+from ..detection.belief import count_alarm_probability, count_moments
+from ..detection.count import (
+    alarm_bounds,
+    exact_alarm_probability,
+    exact_count_law,
+    harmful_bound,
+    uses_exact_law,
+)
 from ..detection.interval_test import IntervalTest, cached_interval_test
 from ..detection.probability import (
     AttackForm,
-    count_alarm_probability,
-    count_moments,
     interval_batch,
     sum_tails,
 )
@@ -98,6 +103,15 @@ class _Setting:
                     self.lam, self.design, self.n, cast(float, policy.alpha), policy.alternative
                 )
             bounds = cast(tuple[int, int], self._cache[bkey])
+            if uses_exact_law(self.n, self.lam, self.design):  # as detection_probability
+                return np.array(
+                    [
+                        exact_alarm_probability(
+                            bounds, exact_count_law(self.n, self.lam, self.design, a), harm
+                        )
+                        for a in attacks
+                    ]
+                )
             return np.array(
                 [count_alarm_probability(bounds, self.n, self._moments(a), harm) for a in attacks]
             )
