@@ -306,3 +306,6 @@ pub(crate) fn simulate_on(
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod channel_tests;
