@@ -351,6 +351,3 @@ pub(crate) fn simulate_on(
 
 #[cfg(test)]
 mod tests;
-
-#[cfg(test)]
-mod channel_tests;

@@ -5,6 +5,9 @@ use super::plan::Plan;
 use super::*;
 use crate::schedule::{offline_schedule, Ratio};
 
+/// The game on a Markov channel.
+mod channel;
+
 fn paper() -> LinearSystem {
     LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap()
 }

@@ -1,7 +1,7 @@
 //! The game on a Markov channel: against the exact engine, determinism across threads, the
 //! i.i.d. channel's results pinned bit for bit, and the channel's validation.
 
-use super::*;
+use super::super::*;
 use crate::engine::{Attacker, Engine, PowerSchedule};
 use crate::schedule::{offline_schedule, Ratio};
 
