@@ -398,6 +398,7 @@ fn bench_game(c: &mut Criterion) {
         let (runs, horizon) = (8_192u64, 20_000u64);
         let cfg = GameConfig {
             lam: LAM,
+            channel: None,
             design,
             offline: offline_schedule(Ratio::new(1, 7).expect("ratio")).expect("pattern"),
             attack: Some(attack),

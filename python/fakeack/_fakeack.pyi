@@ -239,4 +239,8 @@ def simulate_game(
     runs: int,
     seed: int,
     progress: Callable[[int], object],
+    channel_p: list[list[float]] | None = None,
+    channel_low: list[float] | None = None,
+    channel_high: list[float] | None = None,
+    offline_pattern: list[bool] | None = None,
 ) -> dict[str, Any]: ...

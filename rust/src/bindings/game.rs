@@ -11,7 +11,8 @@ use super::attacks::{attack_of, PyAttack};
 use super::design;
 use super::model::PySystem;
 use super::montecarlo::run_interruptible;
-use crate::montecarlo::game::{Detector, GameConfig, Policy};
+use crate::error::Error;
+use crate::montecarlo::game::{Detector, GameConfig, MarkovChannel, Policy};
 use crate::schedule::{offline_schedule, Ratio};
 
 /// The policy named `kind`: "online" (never tested), "offline", "count" (alarm iff N <= lo or
@@ -49,9 +50,65 @@ fn policy_of(
     })
 }
 
+/// The channel of `channel_p`, `channel_low` and `channel_high` (all or none).
+fn channel_of(
+    p: Option<Vec<Vec<f64>>>,
+    low: Option<Vec<f64>>,
+    high: Option<Vec<f64>>,
+) -> PyResult<Option<MarkovChannel>> {
+    match (p, low, high) {
+        (None, None, None) => Ok(None),
+        (Some(p), Some(low), Some(high)) => Ok(Some(MarkovChannel { p, low, high })),
+        (p, low, _) => {
+            let missing = if p.is_none() {
+                "channel_p"
+            } else if low.is_none() {
+                "channel_low"
+            } else {
+                "channel_high"
+            };
+            Err(PyValueError::new_err(format!(
+                "{missing}: channel_p, channel_low and channel_high are given together or not at all"
+            )))
+        }
+    }
+}
+
+/// `e` naming the Python argument: the channel's fields and, when given, the offline pattern.
+fn rename(e: Error, pattern_given: bool) -> Error {
+    let name = |arg: &str| -> Option<&'static str> {
+        match arg {
+            "P" => Some("channel_p"),
+            "low" => Some("channel_low"),
+            "high" => Some("channel_high"),
+            "offline" if pattern_given => Some("offline_pattern"),
+            _ => None,
+        }
+    };
+    match e {
+        Error::InvalidArgument { arg, reason } => match name(&arg) {
+            Some(n) => Error::invalid(n, reason),
+            None => Error::InvalidArgument { arg, reason },
+        },
+        Error::TooLarge {
+            arg,
+            requested,
+            limit,
+        } => Error::TooLarge {
+            arg: name(&arg).map_or(arg, String::from),
+            requested,
+            limit,
+        },
+        other => other,
+    }
+}
+
 /// Closed-loop Monte Carlo of the game, with the GIL released, Ctrl-C and `progress(done_runs)`.
+/// `channel_p`, `channel_low`, `channel_high`: a Markov channel (all three, or none for the
+/// i.i.d. channel of `lam`; `lam` is then ignored). `offline_pattern`: the offline schedule's
+/// period (first symbol = the first step of an offline stretch) instead of the pattern of p/q.
 #[pyfunction]
-#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress))]
+#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate_game<'py>(
     py: Python<'py>,
@@ -76,11 +133,22 @@ pub(crate) fn simulate_game<'py>(
     runs: u64,
     seed: u64,
     progress: Bound<'py, PyAny>,
+    channel_p: Option<Vec<Vec<f64>>>,
+    channel_low: Option<Vec<f64>>,
+    channel_high: Option<Vec<f64>>,
+    offline_pattern: Option<Vec<bool>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let ratio = Ratio::new(p, q)?;
+    let given = offline_pattern.is_some();
+    let offline = match offline_pattern {
+        Some(pattern) => pattern.into_iter().map(u8::from).collect(),
+        None => offline_schedule(ratio)?,
+    };
     let cfg = GameConfig {
         lam,
+        channel: channel_of(channel_p, channel_low, channel_high)?,
         design: design(z0, mu)?,
-        offline: offline_schedule(Ratio::new(p, q)?)?,
+        offline,
         attack: attack_of(attack),
         policy: policy_of(
             kind,
@@ -98,6 +166,8 @@ pub(crate) fn simulate_game<'py>(
         runs,
         seed,
     };
+    // Checked here, before the run, so that the errors name this function's arguments.
+    cfg.validate().map_err(|e| rename(e, given))?;
     let sys = &system.get().inner;
     let (cancel, done) = (AtomicBool::new(false), AtomicU64::new(0));
     let report = || progress.call1((done.load(Ordering::Relaxed),)).map(|_| ());

@@ -14,12 +14,21 @@
 //! the attacker keeps counting, blocking and forging them, in every window.
 //!
 //! Per step: the sensor's power (online: high iff a flag-ACK reached it last step; offline: the
-//! pattern), the arrival (always at high power, with probability λ at low), the holding time τ
+//! pattern), the arrival (on the i.i.d. channel always at high power, with probability λ at low;
+//! on a Markov channel in state c_k with probability high[c_k] or low[c_k], see below), the
+//! holding time τ
 //! and Tr P_k = Tr h^τ(P̄), the detector's zero count z (reset by an arrival; a flag sent last step
 //! had reset the memory, so a loss makes z = 1), its flag (at z = z0 with probability μ, always
 //! at z0 + 1), the attacker's block (its counter's mask entry, or probability β) and forgery
 //! (probability γ on a step without a genuine flag). These are the rules of
 //! [`crate::chain::general::capped_attack_chain`], which the tests compare with.
+//!
+//! A Markov channel ([`MarkovChannel`], the package's convention): K states, P row-stochastic
+//! with one closed class, P[i][j] = P(c_{k+1} = j | c_k = i); given c_k the step's packet
+//! arrives independently of everything else with probability low[c_k] at low power and
+//! high[c_k] at high power (a high-power packet may be lost); c_1 has the stationary law of P.
+//! Flag-ACKs are not subject to the channel. The exact engine ([`crate::engine`]) has the same
+//! conventions, and the tests compare with it.
 //!
 //! # Engineering
 //! Two kernels, with the same protocol and different random streams (so one seed gives equally
@@ -31,12 +40,15 @@
 //!   each per-run quantity a thermometer or binary bit-planes, as in the plain Monte Carlo's
 //!   bit-sliced kernel; block b draws from SplitMix64 sub-stream (seed, b), one xoshiro256++
 //!   generator per word, with bit-serial Bernoulli draws exact to 2^-64.
-//! * The lane kernel takes the rest. Runs advance in lock-step tiles of [`LANES`]; tile b draws
+//! * The lane kernel takes the rest, and every Markov channel. Runs advance in lock-step tiles of [`LANES`]; tile b draws
 //!   from SplitMix64 sub-stream (seed, b), one xoshiro256++ generator per lane. Each step takes
 //!   one 64-bit output per lane and splits it into four 16-bit slices for the step's four
 //!   possible draws (arrival, memory length, block, forgery); a slice equal to the top 16 bits
 //!   of the exact threshold ⌊p 2^64⌋ (probability 2^-16) is resolved with 48 further bits, so
-//!   every draw is exactly Bernoulli(⌊p 2^64⌋ / 2^64).
+//!   every draw is exactly Bernoulli(⌊p 2^64⌋ / 2^64). On a Markov channel the arrival's slice
+//!   draws with the state's and the power's probability, and one further 64-bit output per step
+//!   draws the next state by inverse CDF on the thresholds ⌊F_j 2^64⌋ of the cumulative row
+//!   (exact to 2^-64 likewise); c_1 takes one output per lane before the first step.
 //!
 //! Either way each run's result depends on the seed and its index only, not on threads or on
 //! how many runs follow. Blocks and tiles run in parallel (rayon) and are collected in order;
@@ -44,7 +56,8 @@
 //!
 //! Holding times index a table of Tr h^τ(P̄) of length min(burn_in + horizon + 1,
 //! [`MAX_TRACE_TABLE`]); a longer τ (only possible past 16384 steps without an arrival) reads its
-//! last entry.
+//! last entry (exact wherever the table has settled: a stable A, or +inf; on a Markov channel
+//! with a state where packets rarely arrive, long holding times are less rare).
 
 use std::hint::black_box;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
@@ -54,9 +67,11 @@ use rayon::prelude::*;
 use super::bitslice::RUNS;
 use super::cpu::Avx2;
 use crate::attack::Attack;
+use crate::engine::Channel;
 use crate::error::{Error, Result};
+pub use crate::montecarlo::automaton::MarkovChannel;
 use crate::montecarlo::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
-use crate::schedule::{check_lam, OnlineDesign};
+use crate::schedule::{check_lam, OnlineDesign, MAX_PERIOD};
 use crate::system::LinearSystem;
 
 /// Runs simulated in lock-step by one kernel call.
@@ -71,6 +86,8 @@ pub const MAX_BINS: usize = 1 << 12;
 pub const MAX_STEPS: u64 = 1 << 42;
 /// Steps between two polls of the cancel flag within a window.
 pub const CHECK_STEPS: u64 = 1 << 16;
+/// Most states of a Markov channel (its transition draws take K² words).
+pub const MAX_CHANNEL_STATES: usize = 1 << 10;
 
 /// The sensor's test of one window, applied to the flag-ACKs that reached it.
 #[derive(Debug, Clone, PartialEq)]
@@ -116,11 +133,15 @@ pub enum Policy {
 /// One closed-loop experiment.
 #[derive(Debug, Clone, PartialEq)]
 pub struct GameConfig {
-    /// Low-power arrival probability λ, in (0, 1).
+    /// Low-power arrival probability λ, in (0, 1), of the i.i.d. channel (ignored, and not
+    /// checked, when `channel` is given).
     pub lam: f64,
+    /// A Markov channel (`None`: the i.i.d. channel of `lam`, where high power always arrives).
+    pub channel: Option<MarkovChannel>,
     /// The online schedule's memory.
     pub design: OnlineDesign,
-    /// The offline schedule's period (1 = high power), starting with a 1.
+    /// The offline schedule's period (1 = high power), first entry = the first step of an
+    /// offline stretch; at most [`MAX_PERIOD`] steps.
     pub offline: Vec<u8>,
     /// The attack (`None`: none). It runs in every window, online or not.
     pub attack: Option<Attack>,
@@ -159,6 +180,7 @@ pub struct GameRuns {
     pub delivered: Vec<u64>,
 }
 
+mod channel;
 mod plan;
 mod sliced;
 mod tile;
@@ -168,18 +190,22 @@ use sliced::Sliced;
 use tile::{run_tile, Tile};
 
 impl GameConfig {
-    /// Checks every field; the messages name the field.
+    /// Checks every field; the messages name the field (a channel's: `P`, `low`, `high`).
     pub fn validate(&self) -> Result<()> {
-        check_lam(self.lam)?;
+        self.stationary()?;
         self.design.validate()?;
         if let Some(a) = &self.attack {
             a.validate()?;
         }
-        if self.offline.is_empty() || self.offline[0] != 1 || self.offline.iter().any(|&g| g > 1) {
-            return Err(Error::invalid(
-                "offline",
-                "must be a non-empty 0/1 pattern starting with 1",
-            ));
+        if self.offline.is_empty() || self.offline.iter().any(|&g| g > 1) {
+            return Err(Error::invalid("offline", "must be a non-empty 0/1 pattern"));
+        }
+        if self.offline.len() as u64 > MAX_PERIOD {
+            return Err(Error::TooLarge {
+                arg: "offline".into(),
+                requested: self.offline.len() as u128,
+                limit: u128::from(MAX_PERIOD),
+            });
         }
         if self.window < 1 {
             return Err(Error::invalid("window", "must be at least 1"));
@@ -232,6 +258,25 @@ impl GameConfig {
             }
         }
         Ok(())
+    }
+
+    /// Checks `lam` or the channel; the channel's stationary law (empty for the i.i.d. one).
+    fn stationary(&self) -> Result<Vec<f64>> {
+        let Some(ch) = &self.channel else {
+            check_lam(self.lam)?;
+            return Ok(Vec::new());
+        };
+        if ch.p.len() > MAX_CHANNEL_STATES {
+            return Err(Error::TooLarge {
+                arg: "P".into(),
+                requested: ch.p.len() as u128,
+                limit: MAX_CHANNEL_STATES as u128,
+            });
+        }
+        // The engine's validation: square, stochastic rows, one closed class, low and high of
+        // length K in [0, 1].
+        let valid = Channel::markov(ch.p.clone(), ch.low.clone(), ch.high.clone())?;
+        Ok(valid.stationary().to_vec())
     }
 }
 

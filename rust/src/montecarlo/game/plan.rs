@@ -1,6 +1,7 @@
 //! The validated, precomputed form of a [`GameConfig`]: exact Bernoulli draws from 16-bit
 //! slices, the attacker's blocking rule, the trace table and the interval test's bins.
 
+use super::channel::ChannelPlan;
 use super::*;
 
 pub(super) const RULE_NONE: u8 = 0;
@@ -69,6 +70,8 @@ pub(super) struct Plan<'a> {
     pub(super) cfg: &'a GameConfig,
     pub(super) traces: Vec<f64>,
     pub(super) lam: Bern,
+    /// The Markov channel's draws (`None`: the i.i.d. channel of λ).
+    pub(super) channel: Option<ChannelPlan>,
     pub(super) mu: Bern,
     pub(super) gamma: Bern,
     pub(super) forging: bool,
@@ -82,6 +85,10 @@ pub(super) struct Plan<'a> {
 impl<'a> Plan<'a> {
     pub(super) fn new(sys: &LinearSystem, cfg: &'a GameConfig) -> Result<Self> {
         cfg.validate()?;
+        let channel = match &cfg.channel {
+            Some(ch) => Some(ChannelPlan::new(ch, &cfg.stationary()?)),
+            None => None,
+        };
         let steps = cfg.burn_in + cfg.horizon;
         let len = (steps.min(MAX_TRACE_TABLE as u64 - 1) + 1) as usize;
         let traces = sys.h_traces(len - 1);
@@ -108,6 +115,7 @@ impl<'a> Plan<'a> {
             cfg,
             traces,
             lam: Bern::new(cfg.lam),
+            channel,
             mu: Bern::new(cfg.design.mu),
             gamma: Bern::new(gamma),
             forging: gamma > 0.0,

@@ -5,6 +5,9 @@ use super::plan::Plan;
 use super::*;
 use crate::schedule::{offline_schedule, Ratio};
 
+/// The game on a Markov channel.
+mod channel;
+
 fn paper() -> LinearSystem {
     LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap()
 }
@@ -12,6 +15,7 @@ fn paper() -> LinearSystem {
 fn config(attack: Option<Attack>, policy: Policy) -> GameConfig {
     GameConfig {
         lam: 0.5,
+        channel: None,
         design: OnlineDesign::fixed(2).unwrap(),
         offline: offline_schedule(Ratio::new(1, 7).unwrap()).unwrap(),
         attack,
@@ -228,7 +232,7 @@ fn bad_configs_name_the_field() {
         .to_string()
         .starts_with("runs:"));
     let mut cfg = config(None, Policy::Online);
-    cfg.offline = vec![0, 1];
+    cfg.offline = vec![1, 2];
     assert!(sys
         .simulate_game(&cfg)
         .unwrap_err()

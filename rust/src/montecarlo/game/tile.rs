@@ -8,6 +8,8 @@ use super::*;
 pub(super) struct Tile {
     pub(super) rng: [Xoshiro256pp; LANES],
     pub(super) tau: [usize; LANES],
+    /// The channel state c_k of the coming step (0 on the i.i.d. channel).
+    pub(super) chan: [usize; LANES],
     pub(super) z: [u64; LANES],
     pub(super) sigma: [u64; LANES],
     pub(super) pending: [bool; LANES],
@@ -31,11 +33,20 @@ pub(super) struct Tile {
 impl Tile {
     pub(super) fn new(plan: &Plan<'_>, index: u64) -> Self {
         let mut sm = SplitMix64::stream(plan.cfg.seed, index);
-        let rng = std::array::from_fn(|_| Xoshiro256pp::from_splitmix(&mut sm));
+        let mut rng: [Xoshiro256pp; LANES] =
+            std::array::from_fn(|_| Xoshiro256pp::from_splitmix(&mut sm));
+        // c_1 from the stationary law, one output of each lane's stream (none on the i.i.d.
+        // channel, whose streams are as they always were).
+        let chan = std::array::from_fn(|l| {
+            plan.channel
+                .as_ref()
+                .map_or(0, |ch| ch.init.draw(rng[l].next_u64()))
+        });
         let offline = matches!(plan.cfg.policy, Policy::Offline);
         Tile {
             rng,
             tau: [0; LANES],
+            chan,
             z: [0; LANES],
             sigma: [0; LANES],
             // The paper's initial condition: high power at k = 1, as after a flag-ACK.
@@ -65,22 +76,39 @@ impl Tile {
         macro_rules! go {
             ($rule:expr) => {
                 match (mu, plan.forging, bins) {
+                    // A Markov channel: the memory-length and forgery draws always run (μ = 1
+                    // and γ = 0 draw sure outcomes), which halves the instantiations.
+                    _ if plan.channel.is_some() => {
+                        if bins {
+                            self.kernel::<true, true, true, { $rule }, true>(plan, steps)
+                        } else {
+                            self.kernel::<true, true, false, { $rule }, true>(plan, steps)
+                        }
+                    }
                     (false, false, false) => {
-                        self.kernel::<false, false, false, { $rule }>(plan, steps)
+                        self.kernel::<false, false, false, { $rule }, false>(plan, steps)
                     }
                     (false, false, true) => {
-                        self.kernel::<false, false, true, { $rule }>(plan, steps)
+                        self.kernel::<false, false, true, { $rule }, false>(plan, steps)
                     }
                     (false, true, false) => {
-                        self.kernel::<false, true, false, { $rule }>(plan, steps)
+                        self.kernel::<false, true, false, { $rule }, false>(plan, steps)
                     }
-                    (false, true, true) => self.kernel::<false, true, true, { $rule }>(plan, steps),
+                    (false, true, true) => {
+                        self.kernel::<false, true, true, { $rule }, false>(plan, steps)
+                    }
                     (true, false, false) => {
-                        self.kernel::<true, false, false, { $rule }>(plan, steps)
+                        self.kernel::<true, false, false, { $rule }, false>(plan, steps)
                     }
-                    (true, false, true) => self.kernel::<true, false, true, { $rule }>(plan, steps),
-                    (true, true, false) => self.kernel::<true, true, false, { $rule }>(plan, steps),
-                    (true, true, true) => self.kernel::<true, true, true, { $rule }>(plan, steps),
+                    (true, false, true) => {
+                        self.kernel::<true, false, true, { $rule }, false>(plan, steps)
+                    }
+                    (true, true, false) => {
+                        self.kernel::<true, true, false, { $rule }, false>(plan, steps)
+                    }
+                    (true, true, true) => {
+                        self.kernel::<true, true, true, { $rule }, false>(plan, steps)
+                    }
                 }
             };
         }
@@ -94,9 +122,17 @@ impl Tile {
 
     /// The step loop, branch-free except for the rare ties of the Bernoulli slices: `MU` (a
     /// memory-length draw), `FORGE` (forged flags), `BINS` (the interval test's histogram) and
-    /// `RULE` (the attacker's blocking rule) are compile-time, so each plan runs only its code.
+    /// `RULE` (the attacker's blocking rule) are compile-time, so each plan runs only its code;
+    /// so is `CH`, a Markov channel (the plan's), whose state sets each arrival's probability
+    /// and moves after the step by one further draw.
     #[inline(never)]
-    pub(super) fn kernel<const MU: bool, const FORGE: bool, const BINS: bool, const RULE: u8>(
+    pub(super) fn kernel<
+        const MU: bool,
+        const FORGE: bool,
+        const BINS: bool,
+        const RULE: u8,
+        const CH: bool,
+    >(
         &mut self,
         plan: &Plan<'_>,
         steps: u64,
@@ -117,6 +153,7 @@ impl Tile {
             Block::Random(b) => b,
             _ => Bern::new(0.0),
         };
+        let channel = plan.channel.as_ref().filter(|_| CH);
         for _ in 0..steps {
             for l in 0..LANES {
                 let rng = &mut self.rng[l];
@@ -130,7 +167,14 @@ impl Tile {
                 } else {
                     next_pos
                 };
-                let arrive = high | plan.lam.draw(w & 0xffff, rng);
+                let arrive = match channel {
+                    // The state's arrival draw for the step's power: a high-power packet too
+                    // may be lost.
+                    Some(ch) => {
+                        ch.arrive[2 * self.chan[l] + usize::from(high)].draw(w & 0xffff, rng)
+                    }
+                    None => high | plan.lam.draw(w & 0xffff, rng),
+                };
                 // Masks instead of selects: the outcomes are coin flips, and a mispredicted branch
                 // costs more than the whole step. `black_box` keeps LLVM from turning the
                 // masked arithmetic back into branches.
@@ -172,6 +216,11 @@ impl Tile {
                     self.bins[bin_of[gap.min(gap_last)] as usize][l] += u32::from(counted);
                 }
                 self.gap[l] = gap & black_box(usize::from(!delivered).wrapping_neg());
+                if let Some(ch) = channel {
+                    // c_k -> c_{k+1}, from a fresh output of the lane's stream.
+                    let rng = &mut self.rng[l];
+                    self.chan[l] = ch.rows[self.chan[l]].draw(rng.next_u64());
+                }
             }
         }
     }

@@ -114,11 +114,16 @@ pub(super) struct Sliced {
 }
 
 impl Sliced {
-    /// The kernel's form of `plan`, or `None` when the plan does not fit it (a memory deeper than
+    /// The kernel's form of `plan`, or `None` when the plan does not fit it (a Markov channel, a
+    /// memory deeper than
     /// 32 steps, an interval test with more than 64 bins or a last edge beyond 64 steps, a
     /// blocking mask with more than 8 runs of ones).
     pub(super) fn of(plan: &Plan<'_>) -> Option<Self> {
         let cfg = plan.cfg;
+        // A Markov channel runs on the lane kernel.
+        if cfg.channel.is_some() {
+            return None;
+        }
         let z0 = usize::try_from(cfg.design.z0).ok()?;
         if z0 + 1 > MAX_DEPTH {
             return None;

@@ -286,6 +286,7 @@ struct Case {
 fn game(name: &'static str, lam: f64, (z0, mu): (u64, f64), steps: (u64, u64, u64)) -> Case {
     let cfg = GameConfig {
         lam,
+        channel: None,
         design: OnlineDesign::new(z0, mu).unwrap(),
         offline: pattern(7, &[0, 3]),
         attack: None,
