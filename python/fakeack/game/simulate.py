@@ -10,12 +10,15 @@ from typing import cast
 from .. import _fakeack
 from .._internal.progress import Progress
 from .._internal.types import FloatArray, IntArray, RatioLike
-from .._internal.validate import as_int
+from .._internal.validate import as_int, as_probability
+from ..attacks._args import required
 from ..attacks.kinds import AttackLike, as_attack, core_attack
 from ..detection.count import alarm_bounds, harmful_bound
 from ..detection.interval_test import cached_interval_test
 from ..detection.probability import KernelTest
+from ..model.channels import Channel, ChannelLike, channel_argument, is_paper_channel
 from ..model.system import LinearSystem, compiled
+from ._channel import PlayedGame, channel_game
 from .payoff import _Setting
 from .policies import SensorPolicy
 
@@ -53,6 +56,8 @@ class GameSimulation:
     seed: int
     delivered_per_run: IntArray = field(repr=False)
     """Flag-ACKs that reached the sensor in each run's measured horizon."""
+    channel: Channel | None = None
+    """The channel played."""
 
 
 def _ratio_se(num: FloatArray, den: FloatArray) -> tuple[float, float]:
@@ -70,18 +75,19 @@ def _ratio_se(num: FloatArray, den: FloatArray) -> tuple[float, float]:
 
 def simulate_game(
     system: LinearSystem,
-    lam: float,
-    ratio: RatioLike,
-    policy: SensorPolicy,
-    attack: AttackLike,
-    horizon: int,
-    runs: int,
-    seed: int,
+    channel: ChannelLike | None = None,
+    ratio: RatioLike | None = None,
+    policy: SensorPolicy | None = None,
+    attack: AttackLike = None,
+    horizon: int | None = None,
+    runs: int | None = None,
+    seed: int | None = None,
     *,
     n_steps: int = 1000,
     burn_in: int = 0,
     beta_bar: float | None = None,
     progress: bool | None = None,
+    lam: float | None = None,
 ) -> GameSimulation:
     r"""Closed-loop Monte Carlo of the game: the real protocol with the sensor's test and fall-back.
 
@@ -98,8 +104,14 @@ def simulate_game(
     ----------
     system : LinearSystem
         The process and sensor.
-    lam : float
-        Arrival probability :math:`\lambda \in (0, 1)` at low power.
+    channel : Channel or float
+        The channel: a float is the paper's (low-power arrival probability λ in (0, 1)); under a
+        Markov channel (:class:`fakeack.GilbertElliott`, :class:`fakeack.MarkovChannel`) the
+        online schedule is :func:`fakeack.design_online` under it, the fall-back schedule the best
+        offline pattern of :func:`fakeack.offline_search`, and the count test's bounds come from
+        the attack-free flag law under the channel (:func:`fakeack.flag_process`: exact below 100
+        expected flags per window, else normal with the window's exact moments); the interval
+        test, whose law assumes independent gaps, is refused there.
     ratio : Fraction
         Energy ratio p/q (the offline schedule, and the online one via :func:`fakeack.design_online`).
     policy : SensorPolicy
@@ -122,6 +134,9 @@ def simulate_game(
         The harmful rule's threshold (default as :func:`solve_game`).
     progress : bool or None
         Show a progress bar for runs over a second (default: only on a terminal).
+    lam : float, optional
+        The former name of ``channel`` (a float): ``simulate_game(system, lam=0.5, ...)`` still
+        works; giving both is a ``TypeError``.
 
     Returns
     -------
@@ -131,35 +146,45 @@ def simulate_game(
     -----
     Runs in parallel with the GIL released; Ctrl-C raises ``KeyboardInterrupt`` promptly.
     """
+    ch, name = channel_argument(channel, lam, "simulate_game")
+    if ratio is None:
+        raise TypeError("simulate_game() missing required argument: 'ratio'")
+    ratio_ = ratio
     if not isinstance(policy, SensorPolicy):
         raise TypeError(f"policy must be a fakeack.SensorPolicy, got {type(policy).__name__}")
-    setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
-    att = as_attack(attack)
-    horizon = as_int("horizon", horizon, minimum=1)
-    runs = as_int("runs", runs, minimum=1)
-    seed = as_int("seed", seed, minimum=0)
+    horizon = as_int("horizon", required("simulate_game", "horizon", horizon), minimum=1)
+    runs = as_int("runs", required("simulate_game", "runs", runs), minimum=1)
+    seed = as_int("seed", required("simulate_game", "seed", seed), minimum=0)
     if seed >= 2**64:
         raise ValueError(f"seed must be below 2**64, got {seed}")
     burn_in = as_int("burn_in", burn_in, minimum=0)
-    args = _kernel_policy(setting, policy)
+    att = as_attack(attack)
+    if is_paper_channel(ch):
+        setting = _Setting.make(system, as_probability(name, float(ch.low[0])), ratio_, n_steps, beta_bar)
+        kernel = PlayedGame(
+            setting.lam, setting.ratio, setting.design, setting.n, _kernel_policy(setting, policy)
+        )
+    else:
+        kernel = channel_game(system, ch, ratio_, policy, n_steps, beta_bar)
     bar = Progress(runs, progress)
-    r = setting.ratio
+    r = kernel.ratio
     try:
         out = _fakeack.simulate_game(
             compiled(system),
-            setting.lam,
+            kernel.lam,
             r.numerator,
             r.denominator,
-            setting.design.z0,
-            setting.design.mu,
+            kernel.design.z0,
+            kernel.design.mu,
             core_attack(att),
-            *args,
-            setting.n,
+            *kernel.policy,
+            kernel.n,
             horizon,
             burn_in,
             runs,
             seed,
             bar,
+            **kernel.channel_args(),
         )
     finally:
         bar.close()
@@ -183,9 +208,10 @@ def simulate_game(
         fb_se,
         runs,
         horizon,
-        setting.n,
+        kernel.n,
         seed,
         out["delivered"],
+        ch,
     )
 
 
