@@ -152,6 +152,11 @@ def belief_probability(
         raise TypeError("detection_probability() missing required argument: 'n_steps' and 'alpha'")
     n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
     alpha_ = as_probability("alpha", alpha)
+    if test == "support":
+        if beta_bar is not None:
+            raise ValueError("beta_bar: the harmful rule reads the count, not the support check")
+        gap = flag_process(channel, design).min_gap
+        return flag_process(truth, design, att).short_gap_probability(n, gap)
     if test != "count":
         raise ValueError(
             "test: with a Markov channel, true_channel or lam_range only the count test is computed "

@@ -264,8 +264,12 @@ def detection_probability(
         Window length in steps.
     alpha : float
         False-alarm level of the test, in (0, 1).
-    test : {"count", "interval"}
-        The sensor's test.
+    test : {"count", "interval", "support"}
+        The sensor's test. ``"support"`` is the support check: an alarm at any gap between
+        flag-ACKs reaching the sensor shorter than the shortest gap possible without attack
+        (:attr:`fakeack.FlagProcess.min_gap`, z0 + 1 when high-power packets always arrive), the
+        gap that straddles the window's start included; its false-alarm rate is 0, and it is
+        exact (a recursion over the engine's automaton and the time since the last flag-ACK).
     alternative : {"two-sided", "less", "greater"}
         Alternative of the count test (default two-sided). The interval test's statistic is
         two-sided by construction and takes only ``"two-sided"``.
@@ -294,7 +298,7 @@ def detection_probability(
     True
     """
     ch, name = channel_argument(channel, lam, "detection_probability")
-    if true_channel is not None or lam_range is not None or not is_paper_channel(ch):
+    if test == "support" or true_channel is not None or lam_range is not None or not is_paper_channel(ch):
         return belief_probability(
             ch, name, z0, attack, n_steps, alpha, test, alternative, mu, beta_bar, true_channel, lam_range
         )

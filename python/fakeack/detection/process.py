@@ -141,6 +141,67 @@ class FlagProcess:
             p = Kt @ p
         return mean, max(var, 0.0)
 
+    @property
+    def min_gap(self) -> int:
+        """The shortest possible gap (steps) between two flag-ACKs reaching the sensor: the least
+        g >= 1 with :math:`D_1 D_0^{g-1} D_1 \ne 0` on the states the chain visits; 0 if none
+        is ever delivered twice. Without attack and with high-power packets that always arrive
+        it is z0 + 1."""
+        live = self.stationary > 0
+        frontier = np.asarray(self.D1.T @ live.astype(float)).ravel() > 0  # just delivered
+        D0t, D1t = self.D0.T.tocsr(), self.D1.T.tocsr()
+        seen = np.zeros_like(frontier)
+        for g in range(1, self.n_states + 2):
+            if np.any(np.asarray(D1t @ frontier.astype(float)).ravel() > 0):
+                return g
+            frontier = np.asarray(D0t @ frontier.astype(float)).ravel() > 0
+            if not frontier.any() or (seen >= frontier).all():
+                break
+            seen |= frontier
+        return 0
+
+    def short_gap_probability(self, n_steps: int, min_gap: int) -> float:
+        r"""P(a flag-ACK reaches the sensor within ``min_gap - 1`` steps of the previous one, in a
+        stationary window of ``n_steps`` steps): the support check's alarm probability.
+
+        The gap that straddles the window's start counts (the previous delivery may lie before
+        it). A forward recursion over (state, steps since the last delivery, capped at
+        ``min_gap``), from its stationary law, with the short-gap deliveries made absorbing.
+        """
+        n = as_int("n_steps", n_steps, minimum=1)
+        g = as_int("min_gap", min_gap, minimum=1)
+        if g == 1:
+            return 0.0  # every gap is at least one step
+        # The joint stationary law of (state, age) with age = steps since the last delivery
+        # (capped at g): run the chain until it settles from the stationary law of the states.
+        S = self.n_states
+        D0t, D1t = self.D0.T.tocsr(), self.D1.T.tocsr()
+        f = np.zeros((g, S))
+        f[g - 1] = self.stationary
+        for _ in range(10 * g + 200):
+            new = np.zeros_like(f)
+            new[0] = D1t @ f.sum(axis=0)
+            moved = np.stack([D0t @ f[a] for a in range(g)])
+            new[1:] += moved[:-1]
+            new[g - 1] += moved[g - 1]
+            if np.abs(new - f).max() < 1e-15:
+                f = new
+                break
+            f = new
+        # Now the window: deliveries at an age below g - 1 (a gap of age + 1 < g steps) alarm;
+        # their mass is summed as it leaves (exactly 0 where no short gap can occur).
+        alarm = 0.0
+        for _ in range(n):
+            delivered = [D1t @ f[a] for a in range(g)]
+            alarm += float(sum(d.sum() for d in delivered[: g - 1]))
+            new = np.zeros_like(f)
+            new[0] = delivered[g - 1]
+            moved = np.stack([D0t @ f[a] for a in range(g)])
+            new[1:] += moved[:-1]
+            new[g - 1] += moved[g - 1]
+            f = new
+        return float(min(max(alarm, 0.0), 1.0))
+
     def count_law(self, n_steps: int, start: str = "stationary") -> FloatArray:
         r"""The exact law of the count :math:`N_n`: ``law[c] = P(N_n = c)``, c = 0..len-1.
 

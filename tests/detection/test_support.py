@@ -1,0 +1,83 @@
+"""The support check (test="support"): an alarm at any gap between delivered flag-ACKs shorter than
+the attack-free minimum. Its alarm probability against a Monte Carlo of the protocol written from
+its description; exactly 0 without attack and against every attack that never produces such a gap
+(blocking, mimicry, the forger with min_gap = z0 + 1)."""
+
+import numpy as np
+import pytest
+
+import fakeack as fa
+
+
+def protocol_short_gap_rate(lam, z0, gamma, beta, n, runs, burn, seed):
+    """Windows of n steps after a burn-in: the fraction with a delivered flag-ACK fewer than
+    z0 + 1 steps after the previous one (which may fall before the window). The protocol: a
+    high-power packet (after a delivered flag) always arrives, a low one with probability lam; a
+    loss adds one to the zero count, an arrival resets it; at z0 a flag is sent and the memory
+    restarts; the attacker blocks a genuine flag with probability beta and forges one with
+    probability gamma on a step without a genuine flag."""
+    rng = np.random.default_rng(seed)
+    high = np.ones(runs, bool)
+    z = np.zeros(runs, int)
+    age = np.full(runs, 10**9)
+    alarm = np.zeros(runs, bool)
+    for k in range(burn + n):
+        arrive = high | (rng.random(runs) < lam)
+        z = np.where(arrive, 0, z + 1)
+        flag = ~arrive & (z >= z0)
+        z = np.where(flag, 0, z)
+        deliver = (flag & (rng.random(runs) >= beta)) | (~flag & (rng.random(runs) < gamma))
+        age += 1
+        if k >= burn:
+            alarm |= deliver & (age < z0 + 1)
+        age = np.where(deliver, 0, age)
+        high = deliver
+    return alarm.mean()
+
+
+@pytest.mark.parametrize(("gamma", "beta"), [(0.05, 0.0), (0.036465, 0.2)])
+def test_the_short_gap_probability_is_the_protocols(gamma, beta):
+    n, runs = 30, 100_000
+    attack = fa.FlagInjection(gamma, block=fa.RandomBlocking(beta)) if beta else fa.FlagInjection(gamma)
+    p = fa.detection_probability(0.5, 2, attack, n, 0.01, test="support")
+    sim = protocol_short_gap_rate(0.5, 2, gamma, beta, n, runs, 300, seed=7)
+    assert abs(sim - p) < 4 * np.sqrt(p * (1 - p) / runs)
+
+
+@pytest.mark.parametrize(
+    "attack",
+    [
+        None,
+        fa.PeriodicBlocking(1, 5),
+        fa.RandomBlocking(0.3),
+        fa.MimicryAttack(),
+        fa.FlagInjection(0.2, min_gap=3),
+    ],
+    ids=str,
+)
+def test_attacks_without_impossible_gaps_are_never_seen_by_it(attack):
+    assert fa.detection_probability(0.5, 2, attack, 1000, 0.01, test="support") == 0.0
+
+
+def test_the_naive_forger_and_its_rate_matching_are_seen_almost_surely():
+    """At beta = 0.2 rate matching keeps the count's mean (the count test's power stays near
+    alpha) but forges on any quiet step; the careful version (min_gap = z0 + 1) is not seen."""
+    naive = fa.rate_matching_attack(0.5, 2, 0.2)
+    careful = fa.rate_matching_attack(0.5, 2, 0.2, min_gap=3)
+    assert fa.detection_probability(0.5, 2, naive, 1000, 0.01, test="support") > 0.9999
+    assert fa.detection_probability(0.5, 2, careful, 1000, 0.01, test="support") == 0.0
+
+
+def test_the_attack_free_minimum_gap():
+    for z0, mu in [(1, 1.0), (2, 1.0), (3, 0.5), (2, 0.0)]:
+        expect = z0 + 1 if mu > 0 else z0 + 2  # mu = 0: the flag goes out at z0 + 1 losses
+        assert fa.flag_process(0.5, fa.OnlineDesign(z0, mu)).min_gap == expect
+    # A high-power packet that can be lost shortens it: a flag at once after a lost one (z0 = 1).
+    leaky = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2, high_bad=0.5)
+    assert fa.flag_process(leaky, fa.OnlineDesign(1)).min_gap == 1
+    assert fa.flag_process(0.5, fa.OnlineDesign(2), fa.FlagInjection(0.1)).min_gap == 1
+
+
+def test_the_support_check_takes_no_harmful_rule():
+    with pytest.raises(ValueError, match="beta_bar: the harmful rule reads the count"):
+        fa.detection_probability(0.5, 2, None, 1000, 0.01, test="support", beta_bar=0.3)
