@@ -81,3 +81,24 @@ def test_the_attack_free_minimum_gap():
 def test_the_support_check_takes_no_harmful_rule():
     with pytest.raises(ValueError, match="beta_bar: the harmful rule reads the count"):
         fa.detection_probability(0.5, 2, None, 1000, 0.01, test="support", beta_bar=0.3)
+
+
+def test_the_one_shot_tests_apply_it_to_the_gaps_they_are_given():
+    rng = np.random.default_rng(0)
+    law = fa.flag_interval_law(0.5, 2)
+    lengths = np.arange(1, len(law.pmf) + 1)
+    clean = rng.choice(lengths, size=140, p=law.pmf / law.pmf.sum())
+    assert clean.min() >= 3  # the attack-free law has no mass below z0 + 1
+    forged = np.concatenate([clean[:-1], [1]])
+    d = fa.detect_attack(len(clean), 1000, 0.5, 2, gaps=clean)
+    assert d.short_gap is False and not d.attack_detected
+    d = fa.detect_attack(len(forged), 1000, 0.5, 2, gaps=forged)
+    assert d.short_gap is True and d.attack_detected
+    assert not fa.detect_attack(len(forged), 1000, 0.5, 2, gaps=forged, support=False).attack_detected
+    assert fa.detect_attack(140, 1000, 0.5, 2).short_gap is None
+    assert fa.detect_intervals(forged, 1000, 0.5, 2).short_gap
+    assert not fa.detect_intervals(forged, 1000, 0.5, 2, support=False).short_gap
+    # mu = 0: the memory is z0 + 1, so a gap of z0 + 1 is already impossible.
+    assert fa.detect_attack(10, 1000, 0.5, 2, mu=0.0, gaps=[3, 5]).short_gap
+    with pytest.raises(ValueError, match="gaps must be positive integers"):
+        fa.detect_attack(2, 1000, 0.5, 2, gaps=[0, 4])

@@ -14,7 +14,7 @@ from scipy.special import ndtr
 from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
 from ..model.schedules import OnlineDesign, check_online
-from .flags import estimate_beta, flag_interval_moments, regime_rates
+from .flags import as_gaps, attack_free_min_gap, estimate_beta, flag_interval_moments, regime_rates
 
 __all__ = [
     "ALTERNATIVES",
@@ -252,6 +252,8 @@ class Detection:
     n_steps: int
     alpha: float
     alternative: str = "less"
+    short_gap: bool | None = None
+    """With ``gaps``: whether one was shorter than any possible without attack (None: no gaps)."""
 
 
 def detect_attack(
@@ -262,6 +264,9 @@ def detect_attack(
     mu: float = 1.0,
     alpha: float = 0.01,
     alternative: str = "less",
+    *,
+    gaps: object = None,
+    support: bool = True,
 ) -> Detection:
     r"""Test for a fake-ACK attacker from the count of flag-ACKs received in ``n_steps`` steps.
 
@@ -289,6 +294,12 @@ def detect_attack(
         False-alarm probability, in (0, 1).
     alternative : {"less", "greater", "two-sided"}
         Which counts are alarms: too few (blocking; default), too many (forging), or either.
+    gaps : sequence of int, optional
+        The gap before each flag-ACK received (as :func:`fakeack.detect_intervals` takes them).
+        With ``support``, a gap shorter than the attack-free minimum (z0 + 1 steps; z0 + 2 when
+        mu = 0) is an alarm too: no attack-free window holds one, so the level stays alpha.
+    support : bool, optional
+        Apply that support check when ``gaps`` is given (default True).
     """
 
     lam, design = check_online(lam, z0, mu)
@@ -305,4 +316,8 @@ def detect_attack(
         p = count_p_value(z, alternative)
     # Fewer than one expected flag-ACK: the count can still show forging, but not a budget.
     beta = estimate_beta(d, n, lam, design.z0, design.mu) if expected >= 1.0 - 1e-12 else math.nan
-    return Detection(p < alpha, z, p, beta, d, expected, n, alpha, alternative)
+    short = None
+    if gaps is not None:
+        g = as_gaps(gaps)
+        short = bool(support) and bool(g.size) and int(g.min()) < attack_free_min_gap(design)
+    return Detection(p < alpha or bool(short), z, p, beta, d, expected, n, alpha, alternative, short)

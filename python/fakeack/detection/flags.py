@@ -6,6 +6,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+import numpy.typing as npt
 
 from .. import _fakeack
 from .._internal.validate import as_int
@@ -17,6 +18,8 @@ from ..model.schedules import OnlineDesign, check_online, check_online_channel
 from ..model.system import LinearSystem
 
 __all__ = [
+    "as_gaps",
+    "attack_free_min_gap",
     "flag_interval_moments",
     "FlagRates",
     "flag_rates",
@@ -34,6 +37,26 @@ def any_system() -> LinearSystem:
     if _ANY_SYSTEM is None:
         _ANY_SYSTEM = LinearSystem(0.5, 1.0, 1.0, 1.0)
     return _ANY_SYSTEM
+
+
+def as_gaps(gaps: object) -> npt.NDArray[np.int64]:
+    """``gaps`` (steps since the previous flag-ACK, one per flag-ACK) as a 1-D integer array, or a
+    ``ValueError`` naming it."""
+    g = np.asarray(gaps)
+    if g.ndim != 1:
+        raise ValueError(f"gaps must be a 1-D sequence of positive integers, got shape {g.shape}")
+    if g.size and (g.dtype.kind not in "iu" or g.min() < 1):
+        if g.dtype.kind == "f" and np.all(np.isfinite(g)) and np.all(g == np.round(g)) and g.min() >= 1:
+            return g.astype(np.int64)
+        raise ValueError("gaps must be positive integers (steps since the previous flag-ACK)")
+    return g.astype(np.int64)
+
+
+def attack_free_min_gap(design: OnlineDesign) -> int:
+    """The shortest gap between flag-ACKs reaching the sensor without attack on the paper's
+    channel: after a flag-ACK the high-power packet arrives, then z0 losses (z0 + 1 when mu = 0)
+    send the next one (:attr:`fakeack.FlagProcess.min_gap` computes it on any channel)."""
+    return design.z0 + 1 if design.mu > 0 else design.z0 + 2
 
 
 def flag_interval_moments(lam: float, z0: int, mu: float = 1.0) -> tuple[float, float]:

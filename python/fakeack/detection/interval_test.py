@@ -14,7 +14,7 @@ from .._internal.types import FloatArray, IntArray
 from .._internal.validate import as_int, as_probability
 from ..model.schedules import OnlineDesign, check_online
 from . import _quadform
-from .flags import flag_interval_moments
+from .flags import as_gaps, attack_free_min_gap, flag_interval_moments
 from .intervals import design_walk
 
 __all__ = [
@@ -56,14 +56,7 @@ class IntervalTest:
 
     def counts(self, gaps: npt.ArrayLike) -> FloatArray:
         """Observed flag-ACKs per bin, from the gap before each one (steps since the previous)."""
-        g = np.asarray(gaps)
-        if g.ndim != 1:
-            raise ValueError(f"gaps must be a 1-D sequence of positive integers, got shape {g.shape}")
-        if g.size and (g.dtype.kind not in "iu" or g.min() < 1):
-            if g.dtype.kind == "f" and np.all(np.isfinite(g)) and np.all(g == np.round(g)) and g.min() >= 1:
-                g = g.astype(np.int64)
-            else:
-                raise ValueError("gaps must be positive integers (steps since the previous flag-ACK)")
+        g = as_gaps(gaps)
         idx = np.searchsorted(self.edges, g, side="right") - 1
         return np.bincount(idx, minlength=len(self.edges)).astype(float)
 
@@ -223,10 +216,19 @@ class IntervalDetection:
     """Lower edges of the bins (gap lengths in steps)."""
     n_steps: int
     alpha: float
+    short_gap: bool = False
+    """Whether a gap was shorter than any possible without attack (the support check)."""
 
 
 def detect_intervals(
-    gaps: npt.ArrayLike, n_steps: int, lam: float, z0: int, mu: float = 1.0, alpha: float = 0.01
+    gaps: npt.ArrayLike,
+    n_steps: int,
+    lam: float,
+    z0: int,
+    mu: float = 1.0,
+    alpha: float = 0.01,
+    *,
+    support: bool = True,
 ) -> IntervalDetection:
     r"""Test for a fake-ACK attacker from *when* flag-ACKs arrived in a window of ``n_steps`` steps.
 
@@ -245,6 +247,10 @@ def detect_intervals(
         The online schedule's parameters.
     alpha : float
         False-alarm probability per window, in (0, 1).
+    support : bool, optional
+        Also alarm at any gap shorter than the attack-free minimum (z0 + 1 steps; z0 + 2 when
+        mu = 0), which no attack-free window holds: the false-alarm rate stays alpha, and a forger
+        that ignores the minimum is caught (default True).
 
     Examples
     --------
@@ -261,6 +267,19 @@ def detect_intervals(
         raise ValueError(f"gaps: more flag-ACKs ({int(o.sum())}) than steps ({test.n_steps})")
     stat = float(np.sum((o - test.expected) ** 2 / test.expected))
     p = test.p_value(stat)
+    g = as_gaps(gaps)
+    short = (
+        bool(support) and bool(g.size) and int(g.min()) < attack_free_min_gap(OnlineDesign(test.z0, test.mu))
+    )
     return IntervalDetection(
-        stat > test.critical, stat, p, test.critical, o, test.expected, test.edges, test.n_steps, test.alpha
+        stat > test.critical or short,
+        stat,
+        p,
+        test.critical,
+        o,
+        test.expected,
+        test.edges,
+        test.n_steps,
+        test.alpha,
+        short,
     )
