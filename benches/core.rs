@@ -16,7 +16,9 @@
 //!   β on the paper's online schedule (λ = 0.5, z0 = 2, μ = 1 and 0.5), traces included;
 //! * `montecarlo/..`: `montecarlo::simulate`, covariance and state modes, paper's system, online
 //!   z0 = 2 under the attack "first 1 of every 5", and covariance mode under independent blocking
-//!   (β = 0.2) and forged flags (γ = 0.05); throughput in simulated steps (runs × horizon);
+//!   (β = 0.2) and forged flags (γ = 0.05), and under "first 1 of every 5" on the Gilbert-Elliott
+//!   channels GE(0.2, 0.2, 1, 0) and GE(0.1, 0.3, 0.9, 0.2) (the bit-sliced kernel's channel
+//!   plane); throughput in simulated steps (runs × horizon);
 //! * `automaton/..`: `montecarlo::automaton::simulate`, the per-run Monte Carlo of an attacker
 //!   automaton, on the paper's example (λ = 0.5, z0 = 2, μ = 1) and on a Gilbert-Elliott channel,
 //!   under a two-state on/off attacker; throughput in simulated steps;
@@ -41,7 +43,7 @@ use nalgebra::DMatrix;
 
 use fakeack::chain::{self, AttackChain};
 use fakeack::montecarlo::game::{Detector, GameConfig, Policy};
-use fakeack::montecarlo::{self, McConfig, McSchedule, Mode, Protocol};
+use fakeack::montecarlo::{self, McConfig, McSchedule, Mode, Protocol, TwoStateChannel};
 use fakeack::online::OnlineDesign;
 use fakeack::pattern::Segments;
 use fakeack::rng::SplitMix64;
@@ -237,6 +239,7 @@ fn bench_random_sweep(c: &mut Criterion) {
 
 fn mc_config(mode: Mode, runs: u64, horizon: usize, attack: Attack) -> McConfig {
     McConfig {
+        channel: None,
         lam: LAM,
         schedule: McSchedule::Online { z0: 2, mu: 1.0 },
         attack: Some(attack),
@@ -271,7 +274,7 @@ fn bench_montecarlo(c: &mut Criterion) {
             1_000usize,
             periodic.clone(),
         ),
-        ("state", Mode::State, 4_096, 1_000, periodic),
+        ("state", Mode::State, 4_096, 1_000, periodic.clone()),
         (
             "covariance_random0.2",
             Mode::Covariance,
@@ -286,8 +289,38 @@ fn bench_montecarlo(c: &mut Criterion) {
             1_000,
             inject,
         ),
+        (
+            "covariance_ge0.2,0.2,1,0",
+            Mode::Covariance,
+            65_536,
+            1_000,
+            periodic.clone(),
+        ),
+        (
+            "covariance_ge0.1,0.3,0.9,0.2",
+            Mode::Covariance,
+            65_536,
+            1_000,
+            periodic.clone(),
+        ),
     ] {
-        let cfg = mc_config(mode, runs, horizon, attack);
+        let mut cfg = mc_config(mode, runs, horizon, attack);
+        if let Some(ge) = name.strip_prefix("covariance_ge") {
+            // GE(0.2, 0.2, 1, 0), or GE(0.1, 0.3, 0.9, 0.2) with p ≠ q.
+            cfg.channel = Some(if ge == "0.2,0.2,1,0" {
+                TwoStateChannel {
+                    p: 0.2,
+                    q: 0.2,
+                    low: [1.0, 0.0],
+                }
+            } else {
+                TwoStateChannel {
+                    p: 0.1,
+                    q: 0.3,
+                    low: [0.9, 0.2],
+                }
+            });
+        }
         g.throughput(Throughput::Elements(runs * horizon as u64));
         g.bench_with_input(
             BenchmarkId::new(name, format!("{runs}x{horizon}")),

@@ -178,7 +178,8 @@ def simulate(
     seed: int,
     progress: Callable[[int], object],
     record_runs: bool,
-) -> dict[str, Any]: ...
+    channel: tuple[float, float, float, float] | None = None,
+) -> dict[str, Any] | None: ...
 def simulate_automaton(
     system: LinearSystem,
     P: list[list[float]],

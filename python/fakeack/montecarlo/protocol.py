@@ -11,7 +11,7 @@ from .._internal.types import FloatArray, IntArray
 from .._internal.validate import MODES, PROTOCOLS, as_int, as_probability
 from ..attacks.automata import AttackerAutomaton, MimicryAttack
 from ..attacks.kinds import AttackLike, core_attack
-from ..model.channels import Channel, ChannelLike, channel_argument
+from ..model.channels import BernoulliChannel, Channel, ChannelLike, channel_argument
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
 from . import _automaton
@@ -86,6 +86,14 @@ class SimulationResult:
             ],
             "± is one standard error across runs; j_k and mean_trace hold the curves.",
         )
+
+
+def _two_state(ch: Channel) -> tuple[float, float, float, float] | None:
+    """``(p, q, low_good, low_bad)`` of a two-state channel on which a high-power packet always
+    arrives (the bit-sliced kernel's channels), else ``None``."""
+    if ch.n_states != 2 or not all(float(h) == 1.0 for h in ch.high):
+        return None
+    return (float(ch.P[0, 1]), float(ch.P[1, 0]), float(ch.low[0]), float(ch.low[1]))
 
 
 def simulate(
@@ -194,6 +202,15 @@ def simulate(
     and a state run of such a plan are different (equally distributed) samples, not paired
     ones.
 
+    A two-state Markov channel on which a high-power packet always arrives
+    (``GilbertElliott(p, q, lam_good, lam_bad)`` with ``high_good = high_bad = 1``, or any such
+    two-state :class:`fakeack.MarkovChannel`) runs on the same bit-sliced kernel, its state one
+    more bit per run, for the same schedules and attacks and within the same limits (random
+    blocking and forging: at any depth), in covariance mode; its draws are exact like the
+    others' and come from the same seeded streams, so the seed alone fixes the result. Such a
+    plan outside those limits goes to the automaton kernel below, as the lane-parallel kernel
+    does not take a Markov channel.
+
     Everything else (another channel, an offline pattern, mimicry, an attacker automaton, an
     injection with ``min_gap > 1``) runs on a plain per-run Monte Carlo of the attack written as
     an automaton (``fakeack.attacks.as_automaton``), in covariance mode only; it steps the
@@ -221,8 +238,12 @@ def simulate(
         raise ValueError(f"mode must be 'covariance' or 'state', got {mode!r}")
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol must be 'A' or 'B', got {protocol!r}")
-    automaton = _automaton.needs_automaton(ch, sched, att)
-    if automaton and mode != "covariance":
+    markov = _two_state(ch)
+    # A two-state channel with high power always arriving runs on the bit-sliced kernel when the
+    # schedule and the attack are ones the specialised kernels take (judged on the paper's
+    # channel); it falls back to the automaton kernel when the plan is outside that kernel.
+    fast = not _automaton.needs_automaton(ch if markov is None else BernoulliChannel(0.5), sched, att)
+    if (not fast or markov is not None) and mode != "covariance":
         raise ValueError(
             f"mode must be 'covariance' for {ch!r}, {sched!r} and attack {att!r}: only the paper's "
             "channel with OfflineSchedule(ratio) or an online design and a built-in attack "
@@ -230,11 +251,11 @@ def simulate(
         )
     bar = Progress(runs, progress)
     try:
-        if automaton:
-            out = _automaton.run_automaton(core, ch, sched, att, horizon, runs, seed, bar, bool(record_runs))
-        else:
+        out = None
+        if fast:
             assert not isinstance(att, (MimicryAttack, AttackerAutomaton))  # needs_automaton
-            lam_value = as_probability(channel_name, float(ch.low[0]))
+            # On a Markov channel lam is not read.
+            lam_value = 0.5 if markov is not None else as_probability(channel_name, float(ch.low[0]))
             if isinstance(sched, OfflineSchedule):
                 assert sched.ratio is not None  # a pattern needs the automaton kernel
                 kind, p, q, z0, mu = "offline", sched.ratio.numerator, sched.ratio.denominator, 1, 1.0
@@ -256,7 +277,10 @@ def simulate(
                 seed,
                 bar,
                 bool(record_runs),
+                markov,
             )
+        if out is None:
+            out = _automaton.run_automaton(core, ch, sched, att, horizon, runs, seed, bar, bool(record_runs))
     finally:
         bar.close()
     return SimulationResult(

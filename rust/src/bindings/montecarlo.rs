@@ -12,7 +12,8 @@ use std::time::Duration;
 use super::attacks::{attack_of, PyAttack};
 use super::design;
 use super::model::PySystem;
-use crate::{McConfig, McResult, Mode, Protocol, Ratio, Schedule};
+use crate::montecarlo::{self, TwoStateChannel};
+use crate::{McConfig, McResult, McSchedule, Mode, Protocol, Ratio, Schedule};
 
 fn parse_mode(mode: &str) -> PyResult<Mode> {
     match mode {
@@ -106,9 +107,11 @@ fn result_dict<'py>(py: Python<'py>, res: McResult) -> PyResult<Bound<'py, PyDic
     Ok(out)
 }
 
-/// Monte Carlo of the protocol, with the GIL released, Ctrl-C and `progress(done_runs)`.
+/// Monte Carlo of the protocol, with the GIL released, Ctrl-C and `progress(done_runs)`. On a
+/// two-state Markov `channel` = (p, q, low_0, low_1) (`lam` is then not read) it returns `None`
+/// without running when the plan is outside the one kernel that simulates such a channel.
 #[pyfunction]
-#[pyo3(signature = (system, lam, kind, p, q, z0, mu, attack, mode, protocol, horizon, runs, seed, progress, record_runs))]
+#[pyo3(signature = (system, lam, kind, p, q, z0, mu, attack, mode, protocol, horizon, runs, seed, progress, record_runs, channel=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate<'py>(
     py: Python<'py>,
@@ -127,9 +130,15 @@ pub(crate) fn simulate<'py>(
     seed: u64,
     progress: Bound<'py, PyAny>,
     record_runs: bool,
-) -> PyResult<Bound<'py, PyDict>> {
+    channel: Option<(f64, f64, f64, f64)>,
+) -> PyResult<Option<Bound<'py, PyDict>>> {
     let cfg = McConfig {
         lam,
+        channel: channel.map(|(p, q, low0, low1)| TwoStateChannel {
+            p,
+            q,
+            low: [low0, low1],
+        }),
         schedule: schedule_of(kind, p, q, z0, mu)?.to_monte_carlo()?,
         attack: attack_of(attack),
         mode: parse_mode(mode)?,
@@ -142,8 +151,13 @@ pub(crate) fn simulate<'py>(
     let sys = &system.get().inner;
     let (cancel, done) = (AtomicBool::new(false), AtomicU64::new(0));
     let report = || progress.call1((done.load(Ordering::Relaxed),)).map(|_| ());
+    if matches!(cfg.schedule, McSchedule::Offline { .. }) && cfg.attack.is_some() {
+        return Err(PyValueError::new_err(
+            "attack: an offline schedule ignores ACKs, so an attack has no effect",
+        ));
+    }
     let res = run_interruptible(py, &cancel, report, || {
-        sys.simulate_with(&cfg, &cancel, &done)
+        montecarlo::simulate_if_supported(sys, &cfg, &cancel, &done)
     })?;
-    result_dict(py, res)
+    res.map(|r| result_dict(py, r)).transpose()
 }

@@ -47,11 +47,31 @@ pub enum Protocol {
     B,
 }
 
+/// A two-state Markov (Gilbert-Elliott) channel on which a high-power packet always arrives:
+/// state 0 (good) and state 1 (bad). Given the state c_k, the packet of step k arrives
+/// independently of everything else (always at high power, with probability `low[c_k]` at low
+/// power); c_1 has the stationary law (P(c_1 = 0) = q / (p + q)); after each step the channel
+/// moves by P = [[1 - p, p], [q, 1 - q]].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TwoStateChannel {
+    /// P(c_{k+1} = 1 | c_k = 0), in [0, 1].
+    pub p: f64,
+    /// P(c_{k+1} = 0 | c_k = 1), in [0, 1]; p + q > 0 (one closed class).
+    pub q: f64,
+    /// Low-power arrival probability in state 0 and in state 1, each in [0, 1].
+    pub low: [f64; 2],
+}
+
 /// One Monte Carlo experiment.
 #[derive(Debug, Clone, PartialEq)]
 pub struct McConfig {
-    /// Low-power arrival probability λ, in (0, 1).
+    /// Low-power arrival probability λ of the paper's i.i.d. channel, in (0, 1); not read when
+    /// [`McConfig::channel`] is given.
     pub lam: f64,
+    /// A two-state Markov channel instead of the i.i.d. one (`None`: the paper's channel of
+    /// `lam`). Covariance mode only, and only on the bit-sliced kernel: a plan outside its
+    /// limits is refused (see [`simulate_if_supported`](super::simulate_if_supported)).
+    pub channel: Option<TwoStateChannel>,
     /// The sensor's power schedule.
     pub schedule: McSchedule,
     /// The attack on the flag-ACKs (online schedule only): [`Attack::Periodic`] blocks the first

@@ -162,6 +162,9 @@ fn run_block(plan: &Plan, kernels: Kernels, block: u64, cancel: &AtomicBool) -> 
     if let (Some(bs), true) = (&plan.bitslice, kernels.bitslice) {
         return run_bitslice_block(plan, bs, isa, block, cancel);
     }
+    if plan.markov {
+        return Err(markov_unsupported());
+    }
     let first = block * BLOCK_RUNS;
     let runs = BLOCK_RUNS.min(plan.runs - first);
     let mut acc = vec![0.0; plan.horizon];
@@ -228,6 +231,37 @@ fn run_block(plan: &Plan, kernels: Kernels, block: u64, cancel: &AtomicBool) -> 
     }
     out.acc = acc;
     Ok(out)
+}
+
+/// The error for a Markov channel on a plan the bit-sliced kernel does not take.
+fn markov_unsupported() -> Error {
+    Error::invalid(
+        "channel",
+        "a Markov channel is simulated by the bit-sliced kernel only, and this plan is outside \
+         its limits (holding-time bound or memory over 32, or over four runs of ones in the mask)",
+    )
+}
+
+/// [`simulate`], or `Ok(None)` (nothing run) when `cfg` has a Markov channel
+/// ([`McConfig::channel`]) and a plan outside the limits of the bit-sliced kernel, the only one
+/// that simulates such a channel: a holding-time bound or a memory over 32 (except under
+/// independent blocking or forging, whose rare deep runs are tracked one by one), or a mask
+/// with over four runs of ones. Errors as [`simulate`] otherwise.
+pub fn simulate_if_supported(
+    sys: &LinearSystem,
+    cfg: &McConfig,
+    cancel: &AtomicBool,
+    progress: &AtomicU64,
+) -> Result<Option<McResult>> {
+    let plan = Plan::new(sys, cfg)?;
+    if plan.markov && plan.bitslice.is_none() {
+        return Ok(None);
+    }
+    let kernels = Kernels {
+        isa: detect_isa(),
+        bitslice: true,
+    };
+    run_plan(&plan, cancel, progress, kernels).map(Some)
 }
 
 /// Neumaier-compensated running means J_k.
@@ -354,6 +388,19 @@ pub(super) fn simulate_with(
     kernels: Kernels,
 ) -> Result<McResult> {
     let plan = Plan::new(sys, cfg)?;
+    if plan.markov && !(kernels.bitslice && plan.bitslice.is_some()) {
+        return Err(markov_unsupported());
+    }
+    run_plan(&plan, cancel, progress, kernels)
+}
+
+/// Runs the blocks of a validated plan on `kernels`.
+fn run_plan(
+    plan: &Plan,
+    cancel: &AtomicBool,
+    progress: &AtomicU64,
+    kernels: Kernels,
+) -> Result<McResult> {
     if cancel.load(Ordering::Relaxed) {
         return Err(Error::Interrupted);
     }
@@ -364,7 +411,7 @@ pub(super) fn simulate_with(
     // than one per thread (each buffer at most 1 GiB).
     let buffer_bytes = plan.horizon as u64 * 8;
     let wave = ((64u64 << 20) / buffer_bytes.max(1)).clamp(threads, 64 * threads);
-    let mut totals = Totals::new(&plan);
+    let mut totals = Totals::new(plan);
     let mut start = 0u64;
     while start < blocks {
         if cancel.load(Ordering::Relaxed) {
@@ -374,7 +421,7 @@ pub(super) fn simulate_with(
         let outs: Vec<Result<BlockOut>> = (start..end)
             .into_par_iter()
             .map(|b| {
-                let out = run_block(&plan, kernels, b, cancel)?;
+                let out = run_block(plan, kernels, b, cancel)?;
                 progress.fetch_add(out.runs, Ordering::Relaxed);
                 Ok(out)
             })
@@ -384,7 +431,7 @@ pub(super) fn simulate_with(
         }
         start = end;
     }
-    Ok(totals.result(&plan))
+    Ok(totals.result(plan))
 }
 
 #[cfg(test)]

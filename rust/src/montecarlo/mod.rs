@@ -51,6 +51,10 @@
 //! time is unbounded (or deeper than 32): its thermometer then stops at a level few runs reach,
 //! chosen from the stationary law of the attack chain, and the runs beyond it are tracked one
 //! by one (`bitslice/deep.rs`). Every other plan, and state mode, uses the lane kernels below.
+//! A two-state Markov channel ([`McConfig::channel`], high power always arriving) runs on the
+//! bit-sliced kernel alone, its state one more bit-plane per block (a compile-time flag, so the
+//! i.i.d. kernels are unchanged); its plans outside that kernel are refused
+//! ([`simulate_if_supported`] says so without running), and so is state mode.
 //! Each family
 //! is deterministic in the seed and independent of threads and CPU features; the two consume
 //! randomness differently, so one seed gives different, equally distributed samples on each
@@ -175,8 +179,8 @@ mod state;
 #[cfg(test)]
 mod tests;
 
-pub use config::{McConfig, McResult, McSchedule, Mode, Protocol};
-pub use driver::simulate;
+pub use config::{McConfig, McResult, McSchedule, Mode, Protocol, TwoStateChannel};
+pub use driver::{simulate, simulate_if_supported};
 
 /// Runs simulated in lock-step by one kernel call (the vector width of the kernels).
 pub const LANES: usize = 16;

@@ -3,8 +3,8 @@
 
 use std::borrow::Cow;
 
-use super::bitslice::{self, BsPlan};
-use super::config::{McConfig, McSchedule, Mode, Protocol};
+use super::bitslice::{self, BsChannel, BsPlan, Prob};
+use super::config::{McConfig, McSchedule, Mode, Protocol, TwoStateChannel};
 use super::kernel::{Params, SlicedThreshold};
 use super::state::StateModel;
 use super::{KernelFlags, MAX_HORIZON, MAX_RECORDED_RUNS};
@@ -100,7 +100,16 @@ fn pack_mask(mask: &[bool]) -> Vec<u64> {
 /// Checks λ and the experiment's size: the horizon, the number of runs and, when recording,
 /// that the per-run record fits.
 fn check_size(cfg: &McConfig) -> Result<()> {
-    check_lam(cfg.lam)?;
+    match &cfg.channel {
+        None => check_lam(cfg.lam)?,
+        Some(ch) => check_channel(ch)?,
+    }
+    if cfg.channel.is_some() && cfg.mode != Mode::Covariance {
+        return Err(Error::invalid(
+            "mode",
+            "must be covariance on a Markov channel (state mode takes the i.i.d. channel only)",
+        ));
+    }
     if cfg.horizon == 0 {
         return Err(Error::invalid("horizon", "must be at least 1"));
     }
@@ -122,6 +131,46 @@ fn check_size(cfg: &McConfig) -> Result<()> {
         });
     }
     Ok(())
+}
+
+/// Checks a two-state channel: probabilities in [0, 1], and p + q > 0 (one closed class, so
+/// the stationary law of the first state exists).
+fn check_channel(ch: &TwoStateChannel) -> Result<()> {
+    let probs = [("channel.p", ch.p), ("channel.q", ch.q)];
+    let lows = [("channel.low[0]", ch.low[0]), ("channel.low[1]", ch.low[1])];
+    for (name, x) in probs.into_iter().chain(lows) {
+        if !(0.0..=1.0).contains(&x) {
+            return Err(Error::invalid(name, format!("must lie in [0, 1], got {x}")));
+        }
+    }
+    if ch.p + ch.q <= 0.0 {
+        return Err(Error::invalid(
+            "channel",
+            "p = q = 0 has two closed classes (no stationary law for the first state)",
+        ));
+    }
+    Ok(())
+}
+
+/// The bit-sliced kernel's draws of a two-state channel.
+fn bs_channel(ch: &TwoStateChannel) -> BsChannel {
+    BsChannel {
+        low: ch.low.map(Prob::new),
+        switch: [Prob::new(ch.p), Prob::new(ch.q)],
+        start_bad: Prob::new(ch.p / (ch.p + ch.q)),
+    }
+}
+
+/// The low-power arrival probability the thermometer's top level is chosen from: λ, or on a
+/// Markov channel its stationary mean (the choice only sets the speed).
+fn mean_lam(cfg: &McConfig) -> f64 {
+    match &cfg.channel {
+        None => cfg.lam,
+        Some(ch) => {
+            let good = ch.q / (ch.p + ch.q);
+            good * ch.low[0] + (1.0 - good) * ch.low[1]
+        }
+    }
 }
 
 /// Checks an offline pattern: non-empty, of zeros and ones, starting with a one.
@@ -176,7 +225,7 @@ fn deep_level_for(cfg: &McConfig, memory: usize, period: u64) -> Option<usize> {
         return Some(deepest);
     };
     let tails = if states <= DEEP_CHAIN_STATES {
-        tau_tails(cfg.lam, *z0, *mu, attack)
+        tau_tails(mean_lam(cfg), *z0, *mu, attack)
     } else {
         None
     };
@@ -255,6 +304,8 @@ pub(super) struct Plan {
     /// The bit-sliced covariance kernel's plan, when the plan fits it (shallow τ bound, short
     /// memory, few runs of ones in the mask); else the lane kernels run.
     pub(super) bitslice: Option<BsPlan>,
+    /// Whether the channel is a two-state Markov one (only the bit-sliced kernel simulates it).
+    pub(super) markov: bool,
 }
 
 impl Plan {
@@ -322,6 +373,7 @@ impl Plan {
             tr: Vec::new(),
             state: None,
             bitslice: None,
+            markov: cfg.channel.is_some(),
         }
     }
 
@@ -375,7 +427,10 @@ impl Plan {
         // exactly one by one; the others keep the exact thermometer of their bound.
         let new_kind = self.beta_thr.is_some() || self.gamma_thr.is_some();
         if fits && new_kind && memory <= bitslice::MAX_DEPTH as u64 {
-            match deep_level_for(cfg, memory as usize, self.mask_len) {
+            // On a Markov channel no lane kernel is faster (none takes it): keep the deepest
+            // level even when many runs pass it.
+            let fallback = cfg.channel.map(|_| bitslice::MAX_DEPTH);
+            match deep_level_for(cfg, memory as usize, self.mask_len).or(fallback) {
                 Some(level) if level < depth => (depth, deep_level) = (level, level),
                 Some(_) => {}
                 None => return None,
@@ -394,6 +449,7 @@ impl Plan {
             mask_len: self.mask_len,
             deep_level,
             tr: self.tr[..=depth.min(self.tr.len().saturating_sub(1))].to_vec(),
+            channel: cfg.channel.as_ref().map(bs_channel),
         })
     }
 

@@ -13,7 +13,7 @@ use super::words::{
     and, andnot, any, equals, increment, less_than, not, or, popcount, splat, xor, LaneCounter,
     Rng4, StreamStepper, BATCH, ONES, RUNS, W, ZERO,
 };
-use super::{BsBlock, BsOut, BsPlan, CANCEL_STEPS, MAX_DEPTH};
+use super::{BsBlock, BsChannel, BsOut, BsPlan, Prob, CANCEL_STEPS, MAX_DEPTH};
 use crate::error::{Error, Result};
 
 /// OR of the levels whose selector is set (a level picked by a run-time index without
@@ -407,8 +407,11 @@ fn pattern_step(pattern: &[u8], pos: &mut usize) -> W {
 /// The kernel on thermometers of D levels (`levels[j]` holds "≥ j + 1") and B counter planes;
 /// `stepper` steps the random streams (on AVX2 registers, or portably). RANDOM blocks the
 /// genuine flags independently (β decisions drawn ahead, [`BetaPool`]; no counter); FORGE forges
-/// a flag with a γ draw for the lanes without one. Draws per step: λ, μ, β (when some flag
-/// needs one), γ, in that order.
+/// a flag with a γ draw for the lanes without one. CHANNEL: a two-state Markov channel, its
+/// state one more bit-plane (1 = bad), drawn from the stationary law before step 1; a low-power
+/// packet then arrives with its state's probability, and the state moves right after (its draw
+/// is independent of the step's others, and the new state is first read at the next step).
+/// Draws per step: λ, the channel's move, μ, β (when some flag needs one), γ, in that order.
 #[inline(always)]
 pub(super) fn body<
     const ONLINE: bool,
@@ -417,6 +420,7 @@ pub(super) fn body<
     const PROTO_A: bool,
     const RANDOM: bool,
     const FORGE: bool,
+    const CHANNEL: bool,
     const D: usize,
     const B: usize,
     S: StreamStepper,
@@ -433,6 +437,7 @@ pub(super) fn body<
         || b.active > RUNS
         || deep_level > D
         || (deep_level > 0 && b.deep_tr.len() <= deep_level)
+        || CHANNEL != p.channel.is_some()
     {
         return Err(Error::invalid(
             "sys",
@@ -460,6 +465,18 @@ pub(super) fn body<
     };
     let mut deep = (deep_level > 0).then(|| DeepRuns::new(deep_level));
     let mut beta_pool = BetaPool::EMPTY;
+    // The channel's state plane (unused on the i.i.d. channel).
+    let never = Prob::new(0.0);
+    let channel = p.channel.unwrap_or(BsChannel {
+        low: [never; 2],
+        switch: [never; 2],
+        start_bad: never,
+    });
+    let mut bad = ZERO;
+    if CHANNEL {
+        let start = (channel.start_bad, channel.start_bad);
+        bad = rng.bernoulli_sel(stepper, start, ZERO, ONES);
+    }
     for (batch_index, steps) in b.acc.chunks_mut(BATCH).enumerate() {
         if (batch_index * BATCH) % CANCEL_STEPS == 0 && cancel.load(Ordering::Relaxed) {
             return Err(Error::Interrupted);
@@ -471,7 +488,15 @@ pub(super) fn body<
                 pattern_step(&p.pattern, &mut pattern_pos)
             };
             // Only low-power packets need the channel's draw.
-            let arrive = or(high, rng.bernoulli(stepper, p.lam_thr, not(high)));
+            let arrive = if CHANNEL {
+                let low = (channel.low[0], channel.low[1]);
+                let arrive = or(high, rng.bernoulli_sel(stepper, low, bad, not(high)));
+                let switch = (channel.switch[0], channel.switch[1]);
+                bad = xor(bad, rng.bernoulli_sel(stepper, switch, bad, ONES));
+                arrive
+            } else {
+                or(high, rng.bernoulli(stepper, p.lam_thr, not(high)))
+            };
             // τ' = 0 on arrival, else τ + 1 (never beyond the plan's bound <= D, except in
             // the lanes at or above a deep plan's top level).
             step_up(&mut therm, arrive);

@@ -53,7 +53,7 @@ pub(super) mod words;
 
 use body::body;
 use words::Portable;
-pub(super) use words::RUNS;
+pub(super) use words::{Prob, RUNS};
 
 /// Deepest thermometer (largest τ bound, and largest memory z0 + 1 under attack) the kernel
 /// takes; deeper plans use the lane kernels, whose cost does not grow with the bound.
@@ -90,6 +90,20 @@ pub(super) struct BsPlan {
     pub(super) deep_level: usize,
     /// `tr[τ]`, τ = 0..=depth.
     pub(super) tr: Vec<f64>,
+    /// A two-state Markov channel, held as one more bit-plane (1 = state 1, bad); `None`: the
+    /// i.i.d. channel of `lam_thr`.
+    pub(super) channel: Option<BsChannel>,
+}
+
+/// The draws of a two-state Markov channel (state 0 good, 1 bad).
+#[derive(Debug, Clone, Copy)]
+pub(super) struct BsChannel {
+    /// Low-power arrival in state 0 and in state 1.
+    pub(super) low: [Prob; 2],
+    /// Leaving state 0 (p) and leaving state 1 (q), after each step.
+    pub(super) switch: [Prob; 2],
+    /// The first state is 1, p / (p + q) (the stationary law).
+    pub(super) start_bad: Prob,
 }
 
 impl BsPlan {
@@ -167,7 +181,8 @@ pub(super) struct BsBlock<'a> {
     pub(super) deep_tr: &'a [f64],
 }
 
-/// The portable kernel: every plan on the deepest thermometer and 64 counter planes.
+/// The portable kernel: every plan on the deepest thermometer and 64 counter planes; CH: on a
+/// two-state Markov channel.
 fn block_portable<
     const O: bool,
     const M: bool,
@@ -175,12 +190,13 @@ fn block_portable<
     const P: bool,
     const RB: bool,
     const FG: bool,
+    const CH: bool,
 >(
     p: &BsPlan,
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, RB, FG, MAX_DEPTH, 64, Portable>(p, b, cancel, Portable)
+    body::<O, M, A, P, RB, FG, CH, MAX_DEPTH, 64, Portable>(p, b, cancel, Portable)
 }
 
 /// The kernel on AVX2 registers with D thermometer levels and B counter planes. Compiled for
@@ -195,6 +211,7 @@ fn block_avx2<
     const P: bool,
     const RB: bool,
     const FG: bool,
+    const CH: bool,
     const D: usize,
     const B: usize,
 >(
@@ -203,25 +220,25 @@ fn block_avx2<
     b: &mut BsBlock,
     cancel: &AtomicBool,
 ) -> Result<BsOut> {
-    body::<O, M, A, P, RB, FG, D, B, Avx2>(p, b, cancel, avx2)
+    body::<O, M, A, P, RB, FG, CH, D, B, Avx2>(p, b, cancel, avx2)
 }
 
-/// The AVX2 kernel for flags ($o, $m, $a, $pa, $rb, $fg) and counter width $b, specialised on
-/// the smallest thermometer size that holds `levels`; `$t` is the [`Avx2`] token.
+/// The AVX2 kernel for flags ($o, $m, $a, $pa, $rb, $fg), channel $ch and counter width $b,
+/// specialised on the smallest thermometer size that holds `levels`; `$t` is the [`Avx2`] token.
 #[cfg(target_arch = "x86_64")]
 macro_rules! avx2_by_depth {
-    ($o:expr, $m:expr, $a:expr, $pa:expr, $rb:expr, $fg:expr, $b:literal, $levels:expr, $t:ident,
-     $p:ident, $blk:ident, $c:ident) => {
+    ($o:expr, $m:expr, $a:expr, $pa:expr, $rb:expr, $fg:expr, $ch:expr, $b:literal, $levels:expr,
+     $t:ident, $p:ident, $blk:ident, $c:ident) => {
         // SAFETY: `$t` is a token that only `Avx2::detect` makes, on a CPU with AVX2, and
         // `run_block` detected POPCNT before using it: the two features `block_avx2` is
         // compiled for.
         unsafe {
             match $levels {
-                0..=2 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 2, $b>($t, $p, $blk, $c),
-                3..=4 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 4, $b>($t, $p, $blk, $c),
-                5..=8 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 8, $b>($t, $p, $blk, $c),
-                9..=16 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 16, $b>($t, $p, $blk, $c),
-                _ => block_avx2::<$o, $m, $a, $pa, $rb, $fg, 32, $b>($t, $p, $blk, $c),
+                0..=2 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, $ch, 2, $b>($t, $p, $blk, $c),
+                3..=4 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, $ch, 4, $b>($t, $p, $blk, $c),
+                5..=8 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, $ch, 8, $b>($t, $p, $blk, $c),
+                9..=16 => block_avx2::<$o, $m, $a, $pa, $rb, $fg, $ch, 16, $b>($t, $p, $blk, $c),
+                _ => block_avx2::<$o, $m, $a, $pa, $rb, $fg, $ch, 32, $b>($t, $p, $blk, $c),
             }
         }
     };
@@ -244,23 +261,42 @@ pub(super) fn run_block(
         // Only mask-blocking kernels have counter planes: monomorphise B = 4 and 64 for those
         // alone.
         macro_rules! sized {
-            ($o:tt, $m:tt, true, $pa:tt, false, $fg:tt) => {
+            ($ch:tt; $o:tt, $m:tt, true, $pa:tt, false, $fg:tt) => {
                 if wide {
-                    avx2_by_depth!($o, $m, true, $pa, false, $fg, 64, levels, avx2, p, b, cancel)
+                    avx2_by_depth!(
+                        $o, $m, true, $pa, false, $fg, $ch, 64, levels, avx2, p, b, cancel
+                    )
                 } else {
-                    avx2_by_depth!($o, $m, true, $pa, false, $fg, 4, levels, avx2, p, b, cancel)
+                    avx2_by_depth!(
+                        $o, $m, true, $pa, false, $fg, $ch, 4, levels, avx2, p, b, cancel
+                    )
                 }
             };
-            ($o:tt, $m:tt, $a:tt, $pa:tt, $rb:tt, $fg:tt) => {
-                avx2_by_depth!($o, $m, $a, $pa, $rb, $fg, 1, levels, avx2, p, b, cancel)
+            ($ch:tt; $o:tt, $m:tt, $a:tt, $pa:tt, $rb:tt, $fg:tt) => {
+                avx2_by_depth!($o, $m, $a, $pa, $rb, $fg, $ch, 1, levels, avx2, p, b, cancel)
             };
         }
-        return by_flags!(flags, sized);
+        // The channel is a compile-time flag too, so the i.i.d. kernels are untouched by it.
+        macro_rules! iid {
+            ($($f:tt),*) => { sized!(false; $($f),*) };
+        }
+        macro_rules! markov {
+            ($($f:tt),*) => { sized!(true; $($f),*) };
+        }
+        return if p.channel.is_some() {
+            by_flags!(flags, markov)
+        } else {
+            by_flags!(flags, iid)
+        };
     }
     let _ = avx2;
     macro_rules! portable {
         ($o:expr, $m:expr, $a:expr, $pa:expr, $rb:expr, $fg:expr) => {
-            block_portable::<$o, $m, $a, $pa, $rb, $fg>(p, b, cancel)
+            if p.channel.is_some() {
+                block_portable::<$o, $m, $a, $pa, $rb, $fg, true>(p, b, cancel)
+            } else {
+                block_portable::<$o, $m, $a, $pa, $rb, $fg, false>(p, b, cancel)
+            }
         };
     }
     by_flags!(flags, portable)

@@ -3,7 +3,7 @@
 
 #[cfg(target_arch = "x86_64")]
 use crate::montecarlo::cpu::Avx2;
-use crate::montecarlo::rng::{xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
+use crate::montecarlo::rng::{bernoulli_threshold, xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
 
 /// Words per block; 64 runs per word.
 pub(crate) const WORDS: usize = 4;
@@ -58,6 +58,28 @@ pub(crate) fn popcount(a: W) -> u32 {
 #[inline(always)]
 pub(crate) fn splat(b: bool) -> W {
     [0u64.wrapping_sub(u64::from(b)); WORDS]
+}
+
+/// A Bernoulli probability as the kernel draws it: the exact threshold T = ⌊p 2^64⌋ (a draw
+/// hits with probability T / 2^64), or certainty for p = 1, where 2^64 does not fit (T is then
+/// 0 and unused).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Prob {
+    /// ⌊p 2^64⌋ (0 when `one`).
+    pub(crate) thr: u64,
+    /// p = 1: every draw hits, no random word is read.
+    pub(crate) one: bool,
+}
+
+impl Prob {
+    /// The draw of probability `p` in [0, 1].
+    pub(crate) fn new(p: f64) -> Self {
+        let one = p >= 1.0;
+        Prob {
+            thr: if one { 0 } else { bernoulli_threshold(p) },
+            one,
+        }
+    }
 }
 
 /// Bit `l` of a lane word.
@@ -154,6 +176,62 @@ impl Rng4 {
             if bit == 0 || thr & ((1u64 << bit) - 1) == 0 || !any(undecided) {
                 return hit;
             }
+            bit -= 1;
+        }
+    }
+
+    /// One draw for each lane of `need` (0 elsewhere) of probability `b` in the lanes of `sel`
+    /// and `a` in the others: the lanes of a certain probability hit without a draw, and the
+    /// others compare their uniform U (built as in [`Rng4::bernoulli`]) with their own threshold,
+    /// bit by bit, the threshold's bit picked per lane by `sel`. Each lane hits iff U < T of its
+    /// probability, exactly; stops once every needed lane is decided (a lane whose threshold has
+    /// no one bit left is decided: U >= T). With `a == b` it is [`Rng4::bernoulli`] itself.
+    #[inline(always)]
+    pub(crate) fn bernoulli_sel<S: StreamStepper>(
+        &mut self,
+        stepper: S,
+        (a, b): (Prob, Prob),
+        sel: W,
+        need: W,
+    ) -> W {
+        if a == b {
+            return if a.one {
+                need
+            } else {
+                self.bernoulli(stepper, a.thr, need)
+            };
+        }
+        let certain = or(and(sel, splat(b.one)), andnot(splat(a.one), sel));
+        let mut hit = and(need, certain);
+        let mut undecided = andnot(need, certain);
+        // Remaining threshold bits, per probability; a lane whose threshold has none left is a
+        // miss (a certain probability's threshold is 0: its lanes are already decided).
+        let (ta, tb) = (a.thr, b.thr);
+        let mut bit = 63u32;
+        let mut rest = u64::MAX;
+        loop {
+            if ta & rest == 0 {
+                undecided = and(undecided, sel);
+            }
+            if tb & rest == 0 {
+                undecided = andnot(undecided, sel);
+            }
+            if !any(undecided) {
+                return hit;
+            }
+            let r = self.next(stepper);
+            // Each lane's threshold bit: `b`'s where `sel`, else `a`'s.
+            let t = or(
+                and(sel, splat((tb >> bit) & 1 == 1)),
+                andnot(splat((ta >> bit) & 1 == 1), sel),
+            );
+            // Threshold bit 1 and U's bit 0: U < T. Unequal bits decide the lane.
+            hit = or(hit, and(undecided, andnot(t, r)));
+            undecided = andnot(undecided, xor(t, r));
+            if bit == 0 {
+                return hit;
+            }
+            rest = (1u64 << bit) - 1;
             bit -= 1;
         }
     }

@@ -28,6 +28,7 @@ fn offline_matches_exact_period_average() {
     }
     let j_off = total / pattern.len() as f64;
     let cfg = McConfig {
+        channel: None,
         lam,
         schedule: McSchedule::Offline { pattern },
         attack: None,

@@ -10,6 +10,7 @@ use crate::attack::Attack;
 use crate::error::{Error, Result};
 use crate::system::LinearSystem;
 
+mod channel;
 mod exact;
 mod inputs;
 mod kernels;
@@ -25,6 +26,7 @@ fn scalar_sys() -> LinearSystem {
 /// An online experiment, attacked by the blocking mask `mask` if given.
 fn online(lam: f64, z0: u64, mu: f64, mask: Option<Vec<bool>>) -> McConfig {
     McConfig {
+        channel: None,
         lam,
         schedule: McSchedule::Online { z0, mu },
         attack: mask.map(Attack::Mask),

@@ -271,6 +271,7 @@ fn plan(
         mask_len: mask.map_or(1, |m| m.len() as u64),
         deep_level: 0,
         tr: table(depth),
+        channel: None,
     }
 }
 
