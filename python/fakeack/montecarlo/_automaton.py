@@ -3,7 +3,8 @@
 Today's kernels (``_fakeack.simulate``) take the paper's channel, ``OfflineSchedule(ratio)`` or
 an online design, and the built-in attacks; everything else (a Markov channel, an offline
 pattern, mimicry, an attacker automaton, an injection with ``min_gap > 1``) goes to the plain
-per-run Monte Carlo of any automaton (``_fakeack.simulate_automaton``).
+per-run Monte Carlo of any automaton (``_fakeack.simulate_automaton``), in covariance or state
+mode.
 """
 
 from __future__ import annotations
@@ -67,8 +68,9 @@ def run_automaton(
     seed: int,
     progress: Any,
     record_runs: bool,
+    mode: str = "covariance",
 ) -> dict[str, Any]:
-    """``_fakeack.simulate_automaton`` on the converted arguments."""
+    """``_fakeack.simulate_automaton`` on the converted arguments (``mode`` already checked)."""
     offline: list[bool] | None = None
     if isinstance(sched, OfflineSchedule):
         pattern = sched.pattern
@@ -97,4 +99,5 @@ def run_automaton(
         seed,
         progress,
         record_runs,
+        mode,
     )
