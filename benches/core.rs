@@ -21,7 +21,8 @@
 //!   plane); throughput in simulated steps (runs × horizon);
 //! * `automaton/..`: `montecarlo::automaton::simulate`, the per-run Monte Carlo of an attacker
 //!   automaton, on the paper's example (λ = 0.5, z0 = 2, μ = 1) and on a Gilbert-Elliott channel,
-//!   under a two-state on/off attacker; throughput in simulated steps;
+//!   under a two-state on/off attacker, covariance mode (and state mode on the Gilbert-Elliott
+//!   channel, 10^4 runs); throughput in simulated steps;
 //! * `game/..`: `LinearSystem::simulate_game`, the closed loop with the sensor's count test in it
 //!   (bounds at about 2.6 standard deviations of the attack-free count of a 1000-step window, two
 //!   offline windows after any alarm; offline schedule 1/7), under the attack "first 1 of every
@@ -371,15 +372,32 @@ fn bench_automaton(c: &mut Criterion) {
         low: vec![0.9, 0.2],
         high: vec![1.0, 1.0],
     };
-    for (name, channel) in [
-        ("paper_on_off", MarkovChannel::bernoulli(LAM)),
-        ("gilbert_elliott_on_off", gilbert_elliott),
+    for (name, channel, mode, runs) in [
+        (
+            "paper_on_off",
+            MarkovChannel::bernoulli(LAM),
+            Mode::Covariance,
+            100_000u64,
+        ),
+        (
+            "gilbert_elliott_on_off",
+            gilbert_elliott.clone(),
+            Mode::Covariance,
+            100_000,
+        ),
+        (
+            "gilbert_elliott_on_off_state",
+            gilbert_elliott,
+            Mode::State,
+            10_000,
+        ),
     ] {
-        let (runs, horizon) = (100_000u64, 1_000usize);
+        let horizon = 1_000usize;
         let cfg = AutomatonConfig {
             channel,
             sensor: Sensor::Online { z0: 2, mu: 1.0 },
             attacker: Some(on_off.clone()),
+            mode,
             horizon,
             runs,
             seed: 1,

@@ -196,6 +196,7 @@ def simulate_automaton(
     seed: int,
     progress: Callable[[int], object],
     record_runs: bool = False,
+    mode: str = "covariance",
 ) -> dict[str, Any]: ...
 def raise_core_error(kind: str) -> None: ...
 def grid_cells(

@@ -201,7 +201,7 @@ def test_determinism_and_thread_count():
 @pytest.mark.parametrize(
     "kw, exc, name",
     [
-        (dict(mode="state"), ValueError, "mode"),
+        (dict(mode="states"), ValueError, "mode"),
         (dict(channel="good"), TypeError, "channel"),
         (dict(channel=1.5), ValueError, "channel"),
         (dict(channel=None, lam=1.5), ValueError, "lam"),

@@ -1,9 +1,11 @@
 """The arguments of :func:`fakeack.simulate` and its route to the automaton Monte Carlo.
 
-Today's kernels (``_fakeack.simulate``) take the paper's channel, ``OfflineSchedule(ratio)`` or
-an online design, and the built-in attacks; everything else (a Markov channel, an offline
-pattern, mimicry, an attacker automaton, an injection with ``min_gap > 1``) goes to the plain
-per-run Monte Carlo of any automaton (``_fakeack.simulate_automaton``).
+The specialised kernels (``_fakeack.simulate``) take the paper's channel and, in covariance mode,
+two-state Markov channels whose high-power packets always arrive, with ``OfflineSchedule(ratio)``
+or an online design and the built-in attacks; everything else (another Markov channel, an
+offline pattern, mimicry, an attacker automaton, an injection with ``min_gap > 1``, state mode
+under a Markov channel) goes to the plain per-run Monte Carlo of any automaton
+(``_fakeack.simulate_automaton``), in covariance or state mode.
 """
 
 from __future__ import annotations
@@ -67,8 +69,9 @@ def run_automaton(
     seed: int,
     progress: Any,
     record_runs: bool,
+    mode: str = "covariance",
 ) -> dict[str, Any]:
-    """``_fakeack.simulate_automaton`` on the converted arguments."""
+    """``_fakeack.simulate_automaton`` on the converted arguments (``mode`` already checked)."""
     offline: list[bool] | None = None
     if isinstance(sched, OfflineSchedule):
         pattern = sched.pattern
@@ -97,4 +100,5 @@ def run_automaton(
         seed,
         progress,
         record_runs,
+        mode,
     )

@@ -156,9 +156,9 @@ def simulate(
         ``"covariance"`` tracks the holding time and averages :math:`\mathrm{Tr}\,P_k`;
         ``"state"`` simulates Gaussian noise, the sensor's steady-state Kalman filter and the
         remote estimator, and averages the squared estimation error (the error dynamics are
-        simulated directly, so unstable A never overflows). State mode is for the paper's channel,
-        the offline schedule by its ratio and the built-in attacks with ``min_gap = 1`` only (see
-        Notes).
+        simulated directly, so unstable A does not overflow; an error that still does, after an
+        astronomically long loss run, gives ``inf``, never NaN). Both modes take every channel,
+        schedule and attack (see Notes).
     protocol : {"B", "A"}
         Type B: a flag packet that the attacker drops (or forges); Type A: a bit every step that
         the attacker flips (1 to 0 to block, 0 to 1 to forge). The statistics are identical
@@ -183,8 +183,7 @@ def simulate(
     TypeError
         For a missing or doubly given channel, or an argument of the wrong type (naming it).
     ValueError
-        For a value out of its domain (naming it), an attack on an offline schedule, or
-        ``mode="state"`` where only the automaton kernel simulates.
+        For a value out of its domain (naming it), or an attack on an offline schedule.
 
     Notes
     -----
@@ -208,13 +207,18 @@ def simulate(
     more bit per run, for the same schedules and attacks and within the same limits (random
     blocking and forging: at any depth), in covariance mode; its draws are exact like the
     others' and come from the same seeded streams, so the seed alone fixes the result. Such a
-    plan outside those limits goes to the automaton kernel below, as the lane-parallel kernel
-    does not take a Markov channel.
+    plan outside those limits, and state mode under such a channel, go to the automaton kernel
+    below, as the lane-parallel kernel does not take a Markov channel.
 
     Everything else (another channel, an offline pattern, mimicry, an attacker automaton, an
     injection with ``min_gap > 1``) runs on a plain per-run Monte Carlo of the attack written as
-    an automaton (``fakeack.attacks.as_automaton``), in covariance mode only; it steps the
-    channel, the detector and the attacker's table, never the exact engine's product chain.
+    an automaton (``fakeack.attacks.as_automaton``); it steps the channel, the detector and the
+    attacker's table, never the exact engine's product chain. Its state mode runs the same error
+    recursions as the lane kernels' (the remote error starts at the sensor's, as the holding time
+    starts at 0, which matters where the first packet may be lost), and for one seed its runs
+    follow the same protocol path as its covariance runs (same arrivals, flag-ACKs and attacker
+    moves; only the noise is added). The protocols A and B are the same in law and give the same
+    result there.
 
     Examples
     --------
@@ -239,16 +243,13 @@ def simulate(
     if protocol not in PROTOCOLS:
         raise ValueError(f"protocol must be 'A' or 'B', got {protocol!r}")
     markov = _two_state(ch)
-    # A two-state channel with high power always arriving runs on the bit-sliced kernel when the
-    # schedule and the attack are ones the specialised kernels take (judged on the paper's
-    # channel); it falls back to the automaton kernel when the plan is outside that kernel.
+    # A two-state channel with high power always arriving runs on the bit-sliced kernel in
+    # covariance mode when the schedule and the attack are ones the specialised kernels take
+    # (judged on the paper's channel); everything else, and state mode under a Markov channel,
+    # runs on the automaton kernel (also the fall-back when a plan is outside the bit-sliced one).
     fast = not _automaton.needs_automaton(ch if markov is None else BernoulliChannel(0.5), sched, att)
-    if (not fast or markov is not None) and mode != "covariance":
-        raise ValueError(
-            f"mode must be 'covariance' for {ch!r}, {sched!r} and attack {att!r}: only the paper's "
-            "channel with OfflineSchedule(ratio) or an online design and a built-in attack "
-            f"(min_gap = 1) has state mode, got {mode!r}"
-        )
+    if markov is not None and mode != "covariance":
+        fast = False
     bar = Progress(runs, progress)
     try:
         out = None
@@ -280,7 +281,9 @@ def simulate(
                 markov,
             )
         if out is None:
-            out = _automaton.run_automaton(core, ch, sched, att, horizon, runs, seed, bar, bool(record_runs))
+            out = _automaton.run_automaton(
+                core, ch, sched, att, horizon, runs, seed, bar, bool(record_runs), mode
+            )
     finally:
         bar.close()
     return SimulationResult(

@@ -12,7 +12,7 @@ use super::montecarlo::run_interruptible;
 use crate::montecarlo::automaton::{
     self, Attacker, AutomatonConfig, MarkovChannel, Sensor, Transition,
 };
-use crate::McResult;
+use crate::{McResult, Mode};
 
 /// One event's transitions as Python gives them: (probability, deliver, next_state).
 type Events = Vec<Vec<(f64, bool, usize)>>;
@@ -43,10 +43,21 @@ fn result_dict<'py>(py: Python<'py>, res: McResult) -> PyResult<Bound<'py, PyDic
     Ok(out)
 }
 
-/// Monte Carlo of the protocol on a Markov channel under an attacker automaton (covariance
-/// mode), with the GIL released, Ctrl-C and `progress(done_runs)`.
+/// The mode by name ("covariance" or "state").
+fn parse_mode(mode: &str) -> PyResult<Mode> {
+    match mode {
+        "covariance" => Ok(Mode::Covariance),
+        "state" => Ok(Mode::State),
+        _ => Err(pyo3::exceptions::PyValueError::new_err(format!(
+            "mode must be 'covariance' or 'state', got {mode:?}"
+        ))),
+    }
+}
+
+/// Monte Carlo of the protocol on a Markov channel under an attacker automaton, in covariance or
+/// state mode, with the GIL released, Ctrl-C and `progress(done_runs)`.
 #[pyfunction]
-#[pyo3(signature = (system, P, low, high, z0, mu, offline, flag, quiet, start, horizon, runs, seed, progress, record_runs=false))]
+#[pyo3(signature = (system, P, low, high, z0, mu, offline, flag, quiet, start, horizon, runs, seed, progress, record_runs=false, mode="covariance"))]
 #[allow(clippy::too_many_arguments, non_snake_case)]
 pub(crate) fn simulate_automaton<'py>(
     py: Python<'py>,
@@ -65,7 +76,9 @@ pub(crate) fn simulate_automaton<'py>(
     seed: u64,
     progress: Bound<'py, PyAny>,
     record_runs: bool,
+    mode: &str,
 ) -> PyResult<Bound<'py, PyDict>> {
+    let mode = parse_mode(mode)?;
     let cfg = AutomatonConfig {
         channel: MarkovChannel { p: P, low, high },
         sensor: match offline {
@@ -77,6 +90,7 @@ pub(crate) fn simulate_automaton<'py>(
             quiet: transitions(quiet),
             start,
         }),
+        mode,
         horizon,
         runs,
         seed,

@@ -126,6 +126,11 @@ impl StateModel {
         }
         Ok(model)
     }
+
+    /// The number of states n.
+    pub(super) fn states(&self) -> usize {
+        self.n
+    }
 }
 
 /// The dot product of `a` and `b`.
@@ -149,8 +154,8 @@ struct Scalar {
 }
 
 /// The error recursions of a tile's lanes: the sensor's errors e^s and the remote errors e,
-/// lane-major, with scratch space for one lane's step.
-struct TileErrors<'m> {
+/// lane-major, with scratch space for one lane's step (also the automaton kernel's state mode).
+pub(super) struct TileErrors<'m> {
     /// The recursions' matrices.
     model: &'m StateModel,
     /// The same recursions on plain numbers when n = m = 1.
@@ -172,13 +177,15 @@ struct TileErrors<'m> {
 }
 
 impl<'m> TileErrors<'m> {
-    /// The errors at k = 0: e^s_0 ~ N(0, P̄) in every lane (drawn from `noise`), e_0 = 0.
-    fn start(model: &'m StateModel, noise: &mut [Xoshiro256pp; LANES]) -> Self {
+    /// The errors at k = 0 of one lane per stream of `noise`: e^s_0 ~ N(0, P̄) (drawn from the
+    /// lane's stream), e_0 = 0.
+    pub(super) fn start(model: &'m StateModel, noise: &mut [Xoshiro256pp]) -> Self {
         let (n, m, rq, rp) = (model.n, model.m, model.rq, model.rp);
+        let lanes = noise.len();
         let gauss = NormalSampler::new();
-        let mut es = vec![0.0; LANES * n];
+        let mut es = vec![0.0; lanes * n];
         let mut zp = vec![0.0; rp];
-        for l in 0..LANES {
+        for l in 0..lanes {
             for z in zp.iter_mut() {
                 *z = gauss.draw(&mut noise[l]);
             }
@@ -197,8 +204,8 @@ impl<'m> TileErrors<'m> {
             model,
             scalar,
             gauss,
+            e: vec![0.0; es.len()],
             es,
-            e: vec![0.0; LANES * n],
             es_new: vec![0.0; n],
             e_new: vec![0.0; n],
             zw: vec![0.0; rq],
@@ -206,10 +213,16 @@ impl<'m> TileErrors<'m> {
         }
     }
 
+    /// Sets every lane's remote error to its sensor's, e_0 = e^s_0: the remote estimate starts
+    /// at the sensor's (τ_0 = 0), which matters where the first packet may be lost.
+    pub(super) fn remote_from_sensor(&mut self) {
+        self.e.copy_from_slice(&self.es);
+    }
+
     /// Advances lane l's errors by one step (the packet arrived iff `arrive`), drawing its noise
     /// from `noise`, and returns ||e_k||².
     #[inline(always)]
-    fn step(&mut self, l: usize, arrive: bool, noise: &mut Xoshiro256pp) -> f64 {
+    pub(super) fn step(&mut self, l: usize, arrive: bool, noise: &mut Xoshiro256pp) -> f64 {
         let Some(sc) = &self.scalar else {
             return self.step_vector(l, arrive, noise);
         };

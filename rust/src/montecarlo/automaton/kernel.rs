@@ -1,5 +1,7 @@
 //! The automaton kernel: [`WIDTH`] runs of a block at a time, each on its own random stream,
-//! stepped through the protocol of the [module docs](super).
+//! stepped through the protocol of the [module docs](super), in covariance mode (a step costs
+//! Tr P_k = `tr[τ_k]`) or in state mode (it costs ||e_k||², the errors simulated by the lane
+//! kernels' state-mode recursions, [`TileErrors`]).
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -7,7 +9,8 @@ use super::tables::Plan;
 use super::{Moments, WIDTH};
 use crate::error::{Error, Result};
 use crate::montecarlo::cpu::Avx2;
-use crate::montecarlo::rng::{xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
+use crate::montecarlo::rng::{SplitMix64, Xoshiro256pp};
+use crate::montecarlo::state::TileErrors;
 use crate::montecarlo::{BLOCK_RUNS, CHUNK_STEPS};
 
 /// What one block of runs reports.
@@ -42,6 +45,66 @@ const _: () = assert!(CHUNK_STEPS as u64 <= FIELD);
 /// blocked in 21..42, forged from 42.
 const INCREMENT: [u64; 4] = [0, 1 << FORGED_SHIFT, 1 | (1 << BLOCKED_SHIFT), 1];
 
+/// xoshiro256++ steps of the [`WIDTH`] transposed streams (`s[w][l]`: word w of stream l),
+/// lane by lane the arithmetic of [`Xoshiro256pp::next_u64`]; it vectorises on AVX2.
+#[inline(always)]
+fn xoshiro256pp_lanes(s: &mut [[u64; WIDTH]; 4]) -> [u64; WIDTH] {
+    let [s0, s1, s2, s3] = s;
+    let mut out = [0u64; WIDTH];
+    for i in 0..WIDTH {
+        out[i] = s0[i]
+            .wrapping_add(s3[i])
+            .rotate_left(23)
+            .wrapping_add(s0[i]);
+        let t = s1[i] << 17;
+        s2[i] ^= s0[i];
+        s3[i] ^= s1[i];
+        s1[i] ^= s2[i];
+        s0[i] ^= s3[i];
+        s2[i] ^= t;
+        s3[i] = s3[i].rotate_left(45);
+    }
+    out
+}
+
+/// What a step costs a run.
+trait Cost {
+    /// Run l's value at a step whose holding time is `tau` (the packet arrived iff `arrive`).
+    fn cost(&mut self, l: usize, arrive: bool, tau: usize) -> f64;
+}
+
+/// Covariance mode: Tr P_k = `tr[τ_k]`.
+struct Traces<'a>(&'a [f64]);
+
+impl Cost for Traces<'_> {
+    #[inline(always)]
+    fn cost(&mut self, _l: usize, _arrive: bool, tau: usize) -> f64 {
+        self.0[tau]
+    }
+}
+
+/// State mode: ||e_k||², each run's errors on its own Gaussian noise stream.
+struct Errors<'m> {
+    /// The sensor's and the remote errors of the runs.
+    errors: TileErrors<'m>,
+    /// The runs' noise streams.
+    noise: [Xoshiro256pp; WIDTH],
+}
+
+impl Cost for Errors<'_> {
+    #[inline(always)]
+    fn cost(&mut self, l: usize, arrive: bool, _tau: usize) -> f64 {
+        let x = self.errors.step(l, arrive, &mut self.noise[l]);
+        // As in the lane kernels' state mode: only an overflowed error gives NaN (inf - inf);
+        // report it as +inf.
+        if x.is_nan() {
+            f64::INFINITY
+        } else {
+            x
+        }
+    }
+}
+
 /// The state of [`WIDTH`] runs advancing together.
 struct Runs {
     /// The runs' xoshiro256++ streams, transposed: `rng[w][l]` is word w of run l's state.
@@ -56,7 +119,7 @@ struct Runs {
     a: [usize; WIDTH],
     /// 1 where a flag-ACK reached the sensor at the last step (high power next).
     hi: [u64; WIDTH],
-    /// Σ_k Tr P_k.
+    /// Σ_k of the step's cost.
     sum: [f64; WIDTH],
     /// Flag-ACKs sent.
     sent: [u64; WIDTH],
@@ -71,9 +134,15 @@ struct Runs {
 impl Runs {
     /// The runs at k = 1, each from the next seed of the block's stream: c_1 from the
     /// stationary law (the run's first draw), high power, zero count 0, the attacker at start.
-    fn start(plan: &Plan, stream: &mut SplitMix64) -> Self {
-        let mut streams: [Xoshiro256pp; WIDTH] = std::array::from_fn(|_| {
-            Xoshiro256pp::from_splitmix(&mut SplitMix64::new(stream.next_u64()))
+    /// Also returns each run's noise stream (state mode), seeded after its protocol stream from
+    /// the same SplitMix64, so that both modes see the same protocol randomness.
+    fn start(plan: &Plan, stream: &mut SplitMix64) -> (Self, [Xoshiro256pp; WIDTH]) {
+        let mut noise = [Xoshiro256pp::seed_from_u64(0); WIDTH];
+        let mut streams: [Xoshiro256pp; WIDTH] = std::array::from_fn(|l| {
+            let mut run = SplitMix64::new(stream.next_u64());
+            let protocol = Xoshiro256pp::from_splitmix(&mut run);
+            noise[l] = Xoshiro256pp::from_splitmix(&mut run);
+            protocol
         });
         let k = plan.k;
         let c = std::array::from_fn(|l| {
@@ -84,7 +153,7 @@ impl Runs {
             }
         });
         let rng = std::array::from_fn(|w| std::array::from_fn(|l| streams[l].state()[w]));
-        Runs {
+        let runs = Runs {
             rng,
             c,
             tau: [0; WIDTH],
@@ -96,7 +165,8 @@ impl Runs {
             blocked: [0; WIDTH],
             forged: [0; WIDTH],
             packed: [0; WIDTH],
-        }
+        };
+        (runs, noise)
     }
 
     /// Adds the chunk's packed counts to the totals.
@@ -110,18 +180,19 @@ impl Runs {
         }
     }
 
-    /// Runs every step, adding the active runs' Tr P_k to `acc` (`mask`: all ones for an
-    /// active run, 0 for padding).
+    /// Runs every step, adding the active runs' costs to `acc` (`mask`: all ones for an active
+    /// run, 0 for padding) and checking `cancel` every `chunk_steps` steps.
     #[inline(always)]
-    fn run<const ONLINE: bool, const MU_DRAW: bool, const MARKOV: bool>(
+    fn run<const ONLINE: bool, const MU_DRAW: bool, const MARKOV: bool, C: Cost>(
         &mut self,
         plan: &Plan,
         mask: &[u64; WIDTH],
         acc: &mut [f64],
+        cost: &mut C,
+        chunk_steps: usize,
         cancel: &AtomicBool,
     ) -> Result<()> {
-        let tr = &plan.tr[..];
-        let last = tr.len() - 1;
+        let last = plan.tr.len() - 1;
         let (z0, mu_thr, memory) = (plan.z0, plan.mu_thr, plan.fixed_memory);
         let pattern = &plan.pattern[..];
         let arrive_thr = &plan.arrive[..];
@@ -129,7 +200,7 @@ impl Runs {
         let (low0, high0) = (arrive_thr[0], arrive_thr[1]);
         let attacker = &plan.attacker;
         let mut pos = 0usize;
-        for chunk in acc.chunks_mut(CHUNK_STEPS) {
+        for chunk in acc.chunks_mut(chunk_steps) {
             if cancel.load(Ordering::Relaxed) {
                 return Err(Error::Interrupted);
             }
@@ -138,19 +209,19 @@ impl Runs {
                 let pattern_high = if ONLINE { 0 } else { pattern[pos] };
                 // Every run draws the same words each step: the arrival, the memory (μ), the
                 // attacker, the channel, each only where the plan has it.
-                let u_arrive = xoshiro256pp_x4(&mut self.rng);
+                let u_arrive = xoshiro256pp_lanes(&mut self.rng);
                 let u_mu = if ONLINE && MU_DRAW {
-                    xoshiro256pp_x4(&mut self.rng)
+                    xoshiro256pp_lanes(&mut self.rng)
                 } else {
                     [0; WIDTH]
                 };
                 let u_attack = if ONLINE {
-                    xoshiro256pp_x4(&mut self.rng)
+                    xoshiro256pp_lanes(&mut self.rng)
                 } else {
                     [0; WIDTH]
                 };
                 let u_channel = if MARKOV {
-                    xoshiro256pp_x4(&mut self.rng)
+                    xoshiro256pp_lanes(&mut self.rng)
                 } else {
                     [0; WIDTH]
                 };
@@ -171,7 +242,7 @@ impl Runs {
                         (self.tau[l] + 1).min(last)
                     };
                     self.tau[l] = tau;
-                    let x = tr[tau];
+                    let x = cost.cost(l, arrive, tau);
                     self.sum[l] += x;
                     row[l] = f64::from_bits(x.to_bits() & mask[l]);
                     if ONLINE {
@@ -194,7 +265,7 @@ impl Runs {
                         self.c[l] = plan.channel.draw(c, u_channel[l]) as usize;
                     }
                 }
-                *slot += lane_sum(&row);
+                add_row(slot, &row);
                 if !ONLINE {
                     pos += 1;
                     if pos == pattern.len() {
@@ -208,48 +279,93 @@ impl Runs {
     }
 }
 
-/// [`Runs::run`] compiled for AVX2, where the four streams' xoshiro256++ steps vectorise. The
-/// integer logic and the f64 additions are those of the plain build, so both give the same
+/// [`Runs::run`] compiled for AVX2, where the streams' xoshiro256++ steps vectorise. The
+/// integer logic and the f64 arithmetic are those of the plain build, so both give the same
 /// results bit for bit.
 ///
 /// # Safety
 /// The CPU must support AVX2 (callers hold an [`Avx2`] token).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-unsafe fn run_avx2<const ONLINE: bool, const MU_DRAW: bool, const MARKOV: bool>(
+unsafe fn run_avx2<const ONLINE: bool, const MU_DRAW: bool, const MARKOV: bool, C: Cost>(
     runs: &mut Runs,
     plan: &Plan,
     mask: &[u64; WIDTH],
     acc: &mut [f64],
+    cost: &mut C,
+    chunk_steps: usize,
     cancel: &AtomicBool,
 ) -> Result<()> {
-    runs.run::<ONLINE, MU_DRAW, MARKOV>(plan, mask, acc, cancel)
+    runs.run::<ONLINE, MU_DRAW, MARKOV, C>(plan, mask, acc, cost, chunk_steps, cancel)
+}
+
+/// The arguments of one group's run.
+struct Group<'a, C> {
+    /// The runs.
+    runs: &'a mut Runs,
+    /// All ones for an active run, 0 for padding.
+    mask: &'a [u64; WIDTH],
+    /// The block's per-step sums.
+    acc: &'a mut [f64],
+    /// What a step costs.
+    cost: &'a mut C,
+    /// Steps between checks of the cancel flag.
+    chunk_steps: usize,
 }
 
 /// Runs the group's steps on the AVX2 build where `avx2` holds the token, else the plain one.
-fn run_on<const ONLINE: bool, const MU_DRAW: bool, const MARKOV: bool>(
+fn run_on<const ONLINE: bool, const MU_DRAW: bool, const MARKOV: bool, C: Cost>(
     avx2: Option<Avx2>,
-    runs: &mut Runs,
     plan: &Plan,
-    mask: &[u64; WIDTH],
-    acc: &mut [f64],
+    g: Group<'_, C>,
     cancel: &AtomicBool,
 ) -> Result<()> {
+    let Group {
+        runs,
+        mask,
+        acc,
+        cost,
+        chunk_steps,
+    } = g;
     #[cfg(target_arch = "x86_64")]
     if let Some(_token) = avx2 {
         // SAFETY: an Avx2 token exists only where `Avx2::detect` found AVX2 on this CPU.
-        return unsafe { run_avx2::<ONLINE, MU_DRAW, MARKOV>(runs, plan, mask, acc, cancel) };
+        return unsafe {
+            run_avx2::<ONLINE, MU_DRAW, MARKOV, C>(runs, plan, mask, acc, cost, chunk_steps, cancel)
+        };
     }
     let _ = avx2;
-    runs.run::<ONLINE, MU_DRAW, MARKOV>(plan, mask, acc, cancel)
+    runs.run::<ONLINE, MU_DRAW, MARKOV, C>(plan, mask, acc, cost, chunk_steps, cancel)
 }
 
-/// Fixed-order sum of the runs' values.
-#[inline(always)]
-fn lane_sum(v: &[f64; WIDTH]) -> f64 {
-    (v[0] + v[1]) + (v[2] + v[3])
+/// Runs the group on the instantiation that fits the plan.
+fn run_group<C: Cost>(
+    avx2: Option<Avx2>,
+    plan: &Plan,
+    g: Group<'_, C>,
+    cancel: &AtomicBool,
+) -> Result<()> {
+    match (plan.online, plan.mu_draw, plan.k > 1) {
+        (false, _, false) => run_on::<false, false, false, C>(avx2, plan, g, cancel),
+        (false, _, true) => run_on::<false, false, true, C>(avx2, plan, g, cancel),
+        (true, false, false) => run_on::<true, false, false, C>(avx2, plan, g, cancel),
+        (true, false, true) => run_on::<true, false, true, C>(avx2, plan, g, cancel),
+        (true, true, false) => run_on::<true, true, false, C>(avx2, plan, g, cancel),
+        (true, true, true) => run_on::<true, true, true, C>(avx2, plan, g, cancel),
+    }
 }
-const _: () = assert!(WIDTH == 4);
+
+/// Adds a step's values of the group's runs to the block's sum, four runs at a time, each four
+/// as `(v0 + v1) + (v2 + v3)`: every slot of the sum receives the same additions in the same
+/// order as with groups of four run one after the other, so the results do not depend on
+/// [`WIDTH`].
+#[inline(always)]
+fn add_row(slot: &mut f64, v: &[f64; WIDTH]) {
+    for q in v.chunks_exact(4) {
+        *slot += (q[0] + q[1]) + (q[2] + q[3]);
+    }
+}
+const _: () = assert!(WIDTH % 4 == 0);
 
 /// Runs block `block` of the plan.
 pub(super) fn run_block(
@@ -272,23 +388,40 @@ pub(super) fn run_block(
         delivered: Vec::new(),
     };
     let horizon = plan.horizon as f64;
-    let markov = plan.k > 1;
     for g in 0..runs.div_ceil(WIDTH as u64) {
         let active = (runs - g * WIDTH as u64).min(WIDTH as u64) as usize;
         let mask: [u64; WIDTH] = std::array::from_fn(|l| if l < active { u64::MAX } else { 0 });
-        let mut r = Runs::start(plan, &mut stream);
+        let (mut r, mut noise) = Runs::start(plan, &mut stream);
         let acc = &mut out.acc;
-        let r_ = &mut r;
-        match (plan.online, plan.mu_draw, markov) {
-            (false, _, false) => run_on::<false, false, false>(avx2, r_, plan, &mask, acc, cancel),
-            (false, _, true) => run_on::<false, false, true>(avx2, r_, plan, &mask, acc, cancel),
-            (true, false, false) => {
-                run_on::<true, false, false>(avx2, r_, plan, &mask, acc, cancel)
+        match &plan.state {
+            None => {
+                let cost = &mut Traces(&plan.tr);
+                let group = Group {
+                    runs: &mut r,
+                    mask: &mask,
+                    acc,
+                    cost,
+                    chunk_steps: CHUNK_STEPS,
+                };
+                run_group(avx2, plan, group, cancel)?;
             }
-            (true, false, true) => run_on::<true, false, true>(avx2, r_, plan, &mask, acc, cancel),
-            (true, true, false) => run_on::<true, true, false>(avx2, r_, plan, &mask, acc, cancel),
-            (true, true, true) => run_on::<true, true, true>(avx2, r_, plan, &mask, acc, cancel),
-        }?;
+            Some(model) => {
+                let mut errors = TileErrors::start(model, &mut noise);
+                // τ_0 = 0: the remote estimate starts at the sensor's.
+                errors.remote_from_sensor();
+                let cost = &mut Errors { errors, noise };
+                // A step costs about n² multiply-adds per run: check the cancel flag as often.
+                let n = model.states();
+                let group = Group {
+                    runs: &mut r,
+                    mask: &mask,
+                    acc,
+                    cost,
+                    chunk_steps: (CHUNK_STEPS / (n * n).max(1)).max(1),
+                };
+                run_group(avx2, plan, group, cancel)?;
+            }
+        }
         for l in 0..active {
             out.moments.push(r.sum[l] / horizon);
             out.sent += u128::from(r.sent[l]);

@@ -23,6 +23,15 @@
 //!    (high power at k + 1) iff `deliver`, and the attacker moves to `next`;
 //! 5. the channel moves c_k → c_{k+1} by `P[c_k]`.
 //!
+//! In covariance mode step k costs `tr[τ_k]` = Tr h^τ_k(P̄); in state mode ([`Mode::State`]) it
+//! costs ||e_k||², the remote estimation error simulated with Gaussian noise by the recursions of
+//! the lane kernels' state mode (the sensor's steady-state Kalman filter; on an arrival the remote
+//! estimate is reset to the sensor's, else predicted), whose mean given the holding time is
+//! Tr h^τ_k(P̄): both modes estimate the same J. A run's protocol stream is the same in both
+//! modes, so for one seed they see the same arrivals, flag-ACKs and attacker moves; state mode
+//! draws its noise from a second stream of the run's seed. The remote error starts at the
+//! sensor's (e_0 = e^s_0 ~ N(0, P̄), τ_0 = 0), which matters where the first packet may be lost.
+//!
 //! Initial condition (the paper's): τ_0 = 0, c_1 drawn from the stationary law of P, high power
 //! at k = 1 (online), zero count 0 (memory all ones), the attacker at its start state. An offline
 //! sensor ignores flag-ACKs: there is no detector and no attacker, and the flag counts are zero.
@@ -48,13 +57,15 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use rayon::prelude::*;
 
-use super::config::McResult;
+use super::config::{McResult, Mode};
 use super::cpu::Avx2;
 use super::BLOCK_RUNS;
 use crate::error::{Error, Result};
 use crate::system::LinearSystem;
 
 mod kernel;
+#[cfg(test)]
+mod state_tests;
 mod tables;
 #[cfg(test)]
 mod tests;
@@ -146,7 +157,7 @@ impl Attacker {
     }
 }
 
-/// One experiment of the automaton Monte Carlo (covariance mode: τ and Tr P_k only).
+/// One experiment of the automaton Monte Carlo.
 #[derive(Debug, Clone, PartialEq)]
 pub struct AutomatonConfig {
     /// The channel.
@@ -155,6 +166,9 @@ pub struct AutomatonConfig {
     pub sensor: Sensor,
     /// The attacker (online only; `None`: no attack). An offline sensor ignores it.
     pub attacker: Option<Attacker>,
+    /// Covariance (τ and Tr P_k) or state (Gaussian errors) fidelity; the same protocol
+    /// randomness in both for one seed.
+    pub mode: Mode,
     /// Steps per run, 1..=[`MAX_HORIZON`](super::MAX_HORIZON).
     pub horizon: usize,
     /// Number of independent runs, >= 1.
@@ -292,15 +306,16 @@ impl Totals {
     }
 }
 
-/// Runs the automaton Monte Carlo of `cfg` on `sys` (covariance mode): E Tr P_k per step, J over
-/// the horizon with its standard error, and the flag-ACK counts, in an [`McResult`]
+/// Runs the automaton Monte Carlo of `cfg` on `sys`: E Tr P_k per step (covariance mode) or
+/// E ||e_k||² (state mode), J over the horizon with its standard error, and the flag-ACK counts, in an [`McResult`]
 /// (`flags_blocked` counts the genuine flag-ACKs the attacker did not deliver, `flags_forged`
 /// the flag-ACKs it delivered on quiet steps).
 ///
 /// Deterministic in `cfg.seed` whatever the number of threads; checks `cancel` between blocks
 /// and every 2^16 steps of a block's runs, returning [`Error::Interrupted`] once it is set; adds
 /// completed runs to `progress` as blocks finish. Errors name the offending argument (`P`,
-/// `low`, `high`, `z0`, `mu`, `offline`, `flag`, `quiet`, `start`, `horizon`, `runs`).
+/// `low`, `high`, `z0`, `mu`, `offline`, `flag`, `quiet`, `start`, `horizon`, `runs`; in state
+/// mode `R` or `sys` where the Kalman gain cannot be formed).
 pub fn simulate(
     sys: &LinearSystem,
     cfg: &AutomatonConfig,

@@ -6,7 +6,8 @@ use nalgebra::{DMatrix, DVector};
 
 use super::{Attacker, AutomatonConfig, Sensor, Transition};
 use crate::error::{Error, Result};
-use crate::montecarlo::{MAX_HORIZON, MAX_RECORDED_RUNS};
+use crate::montecarlo::state::StateModel;
+use crate::montecarlo::{Mode, MAX_HORIZON, MAX_RECORDED_RUNS};
 use crate::schedule::OnlineDesign;
 use crate::system::LinearSystem;
 
@@ -140,6 +141,8 @@ pub(super) struct Plan {
     pub(super) start: u64,
     /// `tr[τ]`, up to where it settles.
     pub(super) tr: Vec<f64>,
+    /// The error recursions (state mode), `None` in covariance mode.
+    pub(super) state: Option<StateModel>,
 }
 
 /// Checks a probability named `arg`.
@@ -389,6 +392,7 @@ impl Plan {
             attacker: Aliases::default(),
             start: 0,
             tr: Vec::new(),
+            state: None,
         };
         match &cfg.sensor {
             Sensor::Online { z0, mu } => {
@@ -425,6 +429,9 @@ impl Plan {
             }
         }
         plan.tr = trace_table(sys, cfg.horizon)?;
+        if cfg.mode == Mode::State {
+            plan.state = Some(StateModel::new(sys)?);
+        }
         Ok(plan)
     }
 }

@@ -55,6 +55,7 @@ fn online(channel: MarkovChannel, attacker: Option<Attacker>) -> AutomatonConfig
         channel,
         sensor: Sensor::Online { z0: 2, mu: 1.0 },
         attacker,
+        mode: Mode::Covariance,
         horizon: 1000,
         runs: 1024,
         seed: 7,
