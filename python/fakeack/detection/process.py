@@ -144,7 +144,7 @@ class FlagProcess:
     @property
     def min_gap(self) -> int:
         """The shortest possible gap (steps) between two flag-ACKs reaching the sensor: the least
-        g >= 1 with :math:`D_1 D_0^{g-1} D_1 \ne 0` on the states the chain visits; 0 if none
+        g >= 1 with :math:`D_1 D_0^{g-1} D_1` not zero on the states the chain visits; 0 if none
         is ever delivered twice. Without attack and with high-power packets that always arrive
         it is z0 + 1."""
         live = self.stationary > 0
