@@ -9,7 +9,7 @@ import pytest
 import fakeack as fa
 from conftest import PAPER
 from fakeack.detection.count import count_alarm_bounds
-from fakeack.detection.probability import simulate_windows
+from fakeack.detection.rates import simulate_windows
 
 GE = fa.GilbertElliott(0.1, 0.1, 1.0, 0.0)
 
@@ -104,3 +104,17 @@ def test_bad_arguments_name_themselves():
     assert fa.detection_probability(lam=0.5, z0=2, attack=None, n_steps=1000, alpha=0.01) == pytest.approx(
         fa.detection_probability(0.5, 2, None, 1000, 0.01)
     )
+
+
+def test_detect_attack_with_a_lam_range_alarms_exactly_on_the_range_region():
+    span, n = (0.45, 0.55), 3000
+    lo, hi = fa.detection.belief.belief_bounds(
+        fa.BernoulliChannel(0.5), fa.OnlineDesign(2), n, 0.01, "two-sided", span
+    )
+    for d in (lo - 3, lo, lo + 1, hi - 1, hi, hi + 3):
+        det = fa.detect_attack(d, n, 0.5, 2, alternative="two-sided", lam_range=span)
+        assert det.attack_detected == (d <= lo or d >= hi), d
+        plain = fa.detect_attack(d, n, 0.5, 2, alternative="two-sided")
+        assert det.p_value >= plain.p_value and det.z_score == plain.z_score
+    with pytest.raises(ValueError, match="lam_range"):
+        fa.detect_attack(400, n, 0.5, 2, lam_range=(0.55, 0.45))

@@ -1,7 +1,7 @@
 """Attacks on the flag-ACKs: the attack objects, the attack chain and its stationary law, the cost
 under attack, the attacker threshold and the sensor's decision, and the families beyond the paper's."""
 
-from .automata import AttackerAutomaton, MimicryAttack, as_automaton
+from .automata import AttackerAutomaton, MimicryAttack, as_automaton, discard_forgeries
 from .chain import (
     attack_chain,
     balance_residual,
@@ -37,6 +37,7 @@ __all__ = [
     "AttackerAutomaton",
     "MimicryAttack",
     "as_automaton",
+    "discard_forgeries",
     "AttackPattern",
     "PeriodicBlocking",
     "MaskBlocking",

@@ -36,6 +36,7 @@ __all__ = [
     "AttackerAutomaton",
     "MimicryAttack",
     "as_automaton",
+    "discard_forgeries",
     "SUM_TOL",
 ]
 
@@ -394,3 +395,40 @@ def as_automaton(attack: object, *, channel: object = None, design: object = Non
     if isinstance(att, FlagInjection):
         return _injection(att)
     return _blocking(att)
+
+
+def discard_forgeries(
+    attack: object, *, channel: object = None, design: object = None
+) -> Attack | AttackerAutomaton | None:
+    r"""The attack as a sensor with authenticated flag-ACKs meets it: every forged flag-ACK is
+    rejected, so only its blocking part acts.
+
+    :class:`fakeack.FlagInjection` becomes its ``block`` (None without one); a
+    :class:`MimicryAttack` or :class:`AttackerAutomaton` keeps its states and moves, with
+    ``deliver`` false on every ``"quiet"`` transition (the attacker still runs its strategy; the
+    sensor discards what it forges); blocking attacks and None are unchanged.
+
+    Parameters
+    ----------
+    attack : attack, str or None
+        Any attack.
+    channel, design : optional
+        The virtual channel and detector of a :class:`MimicryAttack` that has none of its own.
+
+    Returns
+    -------
+    attack or None
+    """
+    if attack is None:
+        return None
+    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
+        auto = as_automaton(attack, channel=channel, design=design)
+        states = [
+            {"flag": list(flag), "quiet": [(p, False, nxt) for p, _, nxt in quiet]}
+            for flag, quiet in zip(auto.flag, auto.quiet, strict=True)
+        ]
+        return AttackerAutomaton(states, start=auto.start)
+    att = as_attack(cast("AttackLike", attack))
+    if isinstance(att, FlagInjection):
+        return att.block
+    return att

@@ -11,10 +11,10 @@ import scipy.sparse as sp
 from .. import _fakeack
 from .._internal.types import FloatArray, IntArray
 from .._internal.validate import as_int, as_probability
-from ..model.channels import ChannelLike, channel_argument, is_paper_channel
+from ..model.channels import ChannelLike, as_channel, channel_argument, is_paper_channel
 from ..model.schedules import OnlineDesign
 from ..model.system import LinearSystem, compiled
-from .automata import AttackerAutomaton, MimicryAttack
+from .automata import AttackerAutomaton, MimicryAttack, discard_forgeries
 from .kinds import (
     Attack,
     AttackLike,
@@ -186,6 +186,7 @@ def j_attack(
     *,
     attack: AttackLike | MimicryAttack | AttackerAutomaton = None,
     lam: float | None = None,
+    authenticated: bool = False,
 ) -> float:
     r"""Cost :math:`J(\tilde\theta_{\mathrm{on}})` under a fake-ACK attack (Sec. IV-B, eq. (14)).
 
@@ -235,6 +236,11 @@ def j_attack(
     lam : float, keyword-only, optional
         The former name of ``channel`` (a float): ``j_attack(system, lam=0.5, z0=2, ...)`` still
         works. Giving both is a TypeError.
+    authenticated : bool, keyword-only, optional
+        Whether the sensor authenticates flag-ACKs and so rejects forged ones (default False):
+        then only the attack's blocking part acts (``fakeack.attacks.discard_forgeries``), a
+        forger without ``block`` costs J_on, and mimicry becomes the blocking of every genuine
+        flag-ACK its virtual detector would not send.
 
     Returns
     -------
@@ -281,6 +287,16 @@ def j_attack(
         raise TypeError("j_attack() missing the memory length z0")
     z0 = as_int("z0", z0, minimum=1)
     mu = as_probability("mu", mu, closed=True)
+    if authenticated:
+        # The sensor rejects forged flag-ACKs: only the attack's blocking part acts.
+        if ch is None:
+            ch = as_channel(number, channel_name)
+        kept = discard_forgeries(att, channel=ch, design=OnlineDesign(z0, mu))
+        if kept is None:
+            from ..model.schedules import j_online
+
+            return j_online(system, ch if not is_paper_channel(ch) else float(ch.low[0]), z0, mu)
+        att, paper = kept, is_paper_channel(ch)
     if isinstance(att, MaskBlocking) and all(att.mask):
         hint = (
             "fakeack.j_max(system, lam)"

@@ -19,8 +19,9 @@ from .count import ALTERNATIVES, Detection, count_alarm_bounds, detect_attack, h
 from .flags import FlagRates, delivered_flag_rate, estimate_beta, flag_interval_moments, flag_rates
 from .interval_test import IntervalDetection, IntervalTest, detect_intervals, interval_test
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
-from .probability import TESTS, DetectionRates, detection_probability, detection_rates
+from .probability import TESTS, detection_probability
 from .process import FlagProcess, flag_process
+from .rates import DetectionRates, detection_rates
 
 __all__ = [
     "flag_interval_moments",

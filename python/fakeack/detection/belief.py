@@ -25,7 +25,9 @@ from ..model.schedules import OnlineDesign
 from .count import (
     ALTERNATIVES,
     EXACT_BELOW,
+    LAM_RANGE_POINTS,
     alarm_bounds,
+    check_lam_range,
     exact_alarm_probability,
     exact_count_law,
     process_alarm_bounds,
@@ -35,16 +37,12 @@ from .intervals import design_walk
 from .process import flag_process
 
 __all__ = [
-    "LAM_RANGE_POINTS",
     "belief_bounds",
     "belief_probability",
     "count_alarm_probability",
     "count_moments",
     "count_probability",
 ]
-
-#: Points of a lam range at which the count test's bounds are taken (its ends included).
-LAM_RANGE_POINTS = 9
 
 
 def count_moments(lam: float, design: OnlineDesign, n: int, attack: Attack | None) -> tuple[float, float]:
@@ -118,15 +116,6 @@ def count_probability(
     return count_alarm_probability(bounds, n, (mean, math.sqrt(var)), None)
 
 
-def _lam_range(lam_range: object) -> tuple[float, float]:
-    if not isinstance(lam_range, (tuple, list)) or len(lam_range) != 2:
-        raise TypeError(f"lam_range must be a pair (lo, hi), got {lam_range!r}")
-    lo, hi = (as_probability(f"lam_range[{i}]", x) for i, x in enumerate(lam_range))
-    if not lo <= hi:
-        raise ValueError(f"lam_range must have lo <= hi, got {lam_range!r}")
-    return lo, hi
-
-
 def belief_probability(
     channel: Channel,
     name: str,
@@ -146,7 +135,7 @@ def belief_probability(
         raise TypeError("detection_probability() missing required argument: 'z0'")
     design = OnlineDesign(z0, mu)  # validates both
     truth = channel if true_channel is None else as_channel(true_channel, "true_channel")
-    span = None if lam_range is None else _lam_range(lam_range)
+    span = None if lam_range is None else check_lam_range(lam_range)
     att = attack if isinstance(attack, (MimicryAttack, AttackerAutomaton)) else as_attack(attack)  # type: ignore[arg-type]
     if n_steps is None or alpha is None:
         raise TypeError("detection_probability() missing required argument: 'n_steps' and 'alpha'")

@@ -256,6 +256,29 @@ class Detection:
     """With ``gaps``: whether one was shorter than any possible without attack (None: no gaps)."""
 
 
+#: Points of a lam range at which the count test is evaluated (its ends included).
+LAM_RANGE_POINTS = 9
+
+
+def check_lam_range(lam_range: object) -> tuple[float, float]:
+    """``lam_range`` as a validated pair 0 < lo <= hi < 1, or an error naming it."""
+    if not isinstance(lam_range, (tuple, list)) or len(lam_range) != 2:
+        raise TypeError(f"lam_range must be a pair (lo, hi), got {lam_range!r}")
+    lo, hi = (as_probability(f"lam_range[{i}]", x) for i, x in enumerate(lam_range))
+    if not lo <= hi:
+        raise ValueError(f"lam_range must have lo <= hi, got {lam_range!r}")
+    return lo, hi
+
+
+def _p_value(d: int, n: int, lam: float, design: OnlineDesign, alternative: str) -> float:
+    """The count test's p-value of ``d`` flags in ``n`` steps at ``lam`` (exact below
+    :data:`EXACT_BELOW` expected flags)."""
+    if uses_exact_law(n, lam, design):
+        return exact_p_value(exact_count_law(n, lam, design), d, alternative)
+    m, v = flag_interval_moments(lam, design.z0, design.mu)
+    return count_p_value(count_z(d, n, m, v), alternative)
+
+
 def detect_attack(
     delivered: int,
     n_steps: int,
@@ -267,6 +290,7 @@ def detect_attack(
     *,
     gaps: object = None,
     support: bool = True,
+    lam_range: tuple[float, float] | None = None,
 ) -> Detection:
     r"""Test for a fake-ACK attacker from the count of flag-ACKs received in ``n_steps`` steps.
 
@@ -300,6 +324,12 @@ def detect_attack(
         mu = 0) is an alarm too: no attack-free window holds one, so the level stays alpha.
     support : bool, optional
         Apply that support check when ``gaps`` is given (default True).
+    lam_range : (float, float), optional
+        A sensor that knows only that lam lies in [lo, hi]: the p-value is the largest over the
+        range (at 9 points, ends included), so the test alarms only where the test of every lam
+        of the range does and its false-alarm rate is at most alpha at each of them
+        (:func:`fakeack.detection_probability` gives its power). ``z_score``, ``expected`` and
+        ``beta_hat`` stay those at ``lam``.
     """
 
     lam, design = check_online(lam, z0, mu)
@@ -310,10 +340,11 @@ def detect_attack(
     expected, _ = renewal_moments(n, lam, design)  # ValueError when flags are too rare to test
     m, v = flag_interval_moments(lam, design.z0, design.mu)
     z = count_z(d, n, m, v)
-    if uses_exact_law(n, lam, design):
-        p = exact_p_value(exact_count_law(n, lam, design), d, alternative)
-    else:
-        p = count_p_value(z, alternative)
+    p = _p_value(d, n, lam, design, alternative)
+    if lam_range is not None:
+        lo, hi = check_lam_range(lam_range)
+        # Alarm only where the test of every lam of the range alarms: the largest p-value.
+        p = max(_p_value(d, n, float(x), design, alternative) for x in np.linspace(lo, hi, LAM_RANGE_POINTS))
     # Fewer than one expected flag-ACK: the count can still show forging, but not a budget.
     beta = estimate_beta(d, n, lam, design.z0, design.mu) if expected >= 1.0 - 1e-12 else math.nan
     short = None

@@ -4,17 +4,16 @@ count and of X², with exact gap laws), and simulated detection rates that check
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
-from typing import TypeAlias
+from typing import TypeAlias, cast
 
 import numpy as np
 
-from .. import _fakeack
 from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
 from ..attacks._args import required
-from ..attacks.kinds import Attack, AttackLike, as_attack, core_attack
-from ..model.channels import ChannelLike, channel_argument, is_paper_channel
+from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeries
+from ..attacks.kinds import Attack, AttackLike, as_attack
+from ..model.channels import ChannelLike, as_channel, channel_argument, is_paper_channel
 from ..model.schedules import OnlineDesign, check_online, check_online_channel
 from . import _quadform
 from .belief import belief_probability, count_alarm_probability, count_moments
@@ -26,15 +25,12 @@ from .count import (
     harmful_bound,
     uses_exact_law,
 )
-from .flags import delivered_flag_rate, estimate_beta
 from .interval_test import IntervalTest, cached_interval_test
 from .intervals import design_walk
 
 __all__ = [
     "TESTS",
     "detection_probability",
-    "DetectionRates",
-    "detection_rates",
 ]
 
 
@@ -222,6 +218,7 @@ def detection_probability(
     true_channel: ChannelLike | None = None,
     lam_range: tuple[float, float] | None = None,
     lam: float | None = None,
+    authenticated: bool = False,
 ) -> float:
     r"""Probability that the sensor's test raises an alarm in one window of ``n_steps`` steps.
 
@@ -286,6 +283,9 @@ def detection_probability(
         its default truth).
     lam : float, optional
         The former name of ``channel`` (a float); giving both is a ``TypeError``.
+    authenticated : bool, optional
+        Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): only
+        the attack's blocking part acts (``fakeack.attacks.discard_forgeries``).
 
     Returns
     -------
@@ -298,13 +298,23 @@ def detection_probability(
     True
     """
     ch, name = channel_argument(channel, lam, "detection_probability")
-    if test == "support" or true_channel is not None or lam_range is not None or not is_paper_channel(ch):
+    played: object = attack
+    if authenticated and attack is not None and z0 is not None:
+        truth = ch if true_channel is None else as_channel(true_channel, "true_channel")
+        played = discard_forgeries(attack, channel=truth, design=OnlineDesign(z0, mu))
+    if (
+        isinstance(played, (AttackerAutomaton, MimicryAttack))
+        or test == "support"
+        or true_channel is not None
+        or lam_range is not None
+        or not is_paper_channel(ch)
+    ):
         return belief_probability(
-            ch, name, z0, attack, n_steps, alpha, test, alternative, mu, beta_bar, true_channel, lam_range
+            ch, name, z0, played, n_steps, alpha, test, alternative, mu, beta_bar, true_channel, lam_range
         )
     lam_, design = check_online_channel(ch, name, z0, mu, "detection_probability")
     lam_, design = check_online(lam_, design.z0, design.mu)
-    att = as_attack(attack)
+    att = as_attack(cast("AttackLike", played))
     n = as_int("n_steps", required("detection_probability", "n_steps", n_steps), minimum=1, maximum=10**9)
     alpha = as_probability("alpha", required("detection_probability", "alpha", alpha))
     test = check_test(test)
@@ -316,184 +326,3 @@ def detection_probability(
     if alternative != "two-sided":
         raise ValueError(f"alternative: the interval test is two-sided by construction, got {alternative!r}")
     return _interval_probability(cached_interval_test(lam, design, n, alpha), att, harm)
-
-
-def simulate_windows(
-    lam: float,
-    design: OnlineDesign,
-    attack: Attack | None,
-    n: int,
-    runs: int,
-    seed: int,
-    test: str,
-    alpha: float,
-    alternative: str,
-    burn_in: int,
-    progress: bool | None = False,
-) -> tuple[FloatArray, FloatArray]:
-    """Alarms (0/1) and delivered flag-ACKs of ``runs`` simulated windows of ``n`` steps, one per run,
-    after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back)."""
-    from .._internal.progress import Progress
-    from .flags import any_system
-
-    if test == "count":
-        lo, hi = alarm_bounds(lam, design, n, alpha, alternative)
-        args: KernelTest = ("count", lo, hi, [], [], 0.0, None, 0)
-    else:
-        t = cached_interval_test(lam, design, n, alpha)
-        args = (
-            "interval",
-            -1,
-            0,
-            [int(e) for e in t.edges],
-            [float(e) for e in t.expected],
-            float(t.critical),
-            None,
-            0,
-        )
-    bar = Progress(runs, progress)
-    burn_in = -(-burn_in // n) * n  # whole windows, so that the measured window is one window
-    try:
-        out = _fakeack.simulate_game(
-            any_system()._core,
-            lam,
-            1,
-            2,
-            design.z0,
-            design.mu,
-            core_attack(attack),
-            *args,
-            n,
-            n,
-            burn_in,
-            runs,
-            seed,
-            bar,
-        )
-    finally:
-        bar.close()
-    return out["alarms"], out["delivered"]
-
-
-@dataclass(frozen=True)
-class DetectionRates:
-    """Simulated performance of the sensor's tests (see :func:`detection_rates`)."""
-
-    false_alarm: float
-    """Fraction of attack-free windows flagged as attacked (should be close to alpha)."""
-    detection: float
-    """Fraction of attacked windows flagged."""
-    beta_hat_mean: float
-    """Mean of :func:`estimate_beta` over the attacked windows; NaN (as ``beta_hat_std``) for a
-    window in which fewer than one flag-ACK is expected without attack, where it is undefined."""
-    beta_hat_std: float
-    beta: float
-    """The attack's budget (the blocking part's, for an injection)."""
-    runs: int
-    n_steps: int
-    alpha: float
-    false_alarm_stderr: float = math.nan
-    detection_stderr: float = math.nan
-    test: str = "count"
-    alternative: str = "less"
-    burn_in: int = 0
-
-
-def detection_rates(
-    lam: float,
-    z0: int,
-    attack: AttackLike,
-    n_steps: int = 1000,
-    runs: int = 2000,
-    mu: float = 1.0,
-    alpha: float = 0.01,
-    seed: int = 1,
-    test: str = "count",
-    alternative: str | None = None,
-    burn_in: int = 0,
-) -> DetectionRates:
-    """False-alarm and detection rates of the sensor's tests by Monte Carlo of the protocol.
-
-    Simulates ``runs`` attack-free and ``runs`` attacked observation windows of ``n_steps`` steps
-    (one window per run, after ``burn_in`` steps; the flag process does not depend on the plant)
-    with the closed-loop kernel of :func:`fakeack.simulate_game`, and applies the test to
-    each: the count test of :func:`detect_attack` or the interval test of
-    :func:`fakeack.detect_intervals`, with their exact alarm regions. With ``burn_in=0`` every
-    window starts from the paper's initial condition; a burn-in of a window or more puts the
-    window near the stationary regime that :func:`fakeack.detection_probability` describes. Forged flag-ACKs
-    (:class:`fakeack.FlagInjection`) count as delivered: the sensor cannot tell them from genuine
-    ones, which is how :func:`fakeack.rate_matching_attack` hides from the count test.
-
-    Parameters
-    ----------
-    lam : float
-        Arrival probability at low power.
-    z0 : int
-        Memory length of the event detector.
-    attack : attack, (r, t) or str
-        The attack to detect: :class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
-        :class:`fakeack.RandomBlocking` or :class:`fakeack.FlagInjection` (its ``beta`` is that of
-        its blocking part), or a spelling such as ``"1/5"`` or ``"inject:0.04+random:0.2"``.
-    n_steps : int, optional
-        Observation window in steps (default 1000).
-    runs : int, optional
-        Windows simulated with and without the attack (default 2000).
-    mu : float, optional
-        Probability of the z0-bit memory at each step (default 1).
-    alpha : float, optional
-        Level of the test (default 0.01).
-    seed : int, optional
-        Seed of the attack-free windows (the attacked ones use seed + 1).
-    test : {"count", "interval"}, optional
-        The test (default the count test).
-    alternative : {"less", "greater", "two-sided"}, optional
-        The count test's alternative (default "less", as :func:`detect_attack`); the interval test
-        is two-sided (the default for it, and the only value it takes).
-    burn_in : int, optional
-        Steps simulated before each window, rounded up to whole windows (default 0).
-    """
-    from .count import check_alternative
-
-    lam, design = check_online(lam, z0, mu)
-    att = as_attack(attack)
-    if att is None:
-        raise ValueError("attack: give the attack whose detection rate you want, e.g. (1, 5)")
-    n = as_int("n_steps", n_steps, minimum=1)
-    runs = as_int("runs", runs, minimum=2, maximum=1 << 24)
-    alpha = as_probability("alpha", alpha)
-    seed = as_int("seed", seed, minimum=0, maximum=2**63)
-    test = check_test(test)
-    if alternative is None:
-        alternative = "less" if test == "count" else "two-sided"
-    alternative = check_alternative(alternative)
-    if test == "interval" and alternative != "two-sided":
-        raise ValueError("alternative: the interval test is two-sided by construction")
-    burn_in = as_int("burn_in", burn_in, minimum=0)
-    flagged: dict[str, float] = {}
-    se: dict[str, float] = {}
-    delivered = np.zeros(0)  # the attacked windows' counts, from the loop's last run
-    for name, a, sd in (("clean", None, seed), ("attacked", att, seed + 1)):
-        alarms, counts = simulate_windows(lam, design, a, n, runs, sd, test, alpha, alternative, burn_in)
-        p = float(np.mean(alarms))
-        flagged[name], se[name] = p, math.sqrt(max(p * (1 - p), 0.0) / runs)
-        delivered = counts
-    beta_mean = beta_std = math.nan  # a window too short to estimate beta (documented)
-    if n * delivered_flag_rate(lam, design.z0, None, design.mu) >= 1.0 - 1e-12:
-        betas = np.array([estimate_beta(int(c), n, lam, design.z0, design.mu) for c in delivered])
-        beta_mean, beta_std = float(betas.mean()), float(betas.std(ddof=1))
-    beta = float(att.beta)
-    return DetectionRates(
-        flagged["clean"],
-        flagged["attacked"],
-        beta_mean,
-        beta_std,
-        beta,
-        runs,
-        n,
-        alpha,
-        se["clean"],
-        se["attacked"],
-        test,
-        alternative,
-        burn_in,
-    )

@@ -25,7 +25,7 @@ import scipy.sparse as sp
 from .. import _fakeack
 from .._internal.html import key_values
 from .._internal.validate import as_int, as_real
-from ..attacks.automata import AttackerAutomaton, MimicryAttack, Transition
+from ..attacks.automata import AttackerAutomaton, MimicryAttack, Transition, discard_forgeries
 from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack, core_attack
 from ..attacks.rates import FlagRates
 from ..model.channels import Channel, as_channel
@@ -97,6 +97,10 @@ class Scenario:
     max_states : int, keyword-only, optional
         Refuse (ValueError) an automaton E of more states than this, before allocating it
         (default 10^6).
+    authenticated : bool, keyword-only, optional
+        Whether the sensor authenticates flag-ACKs (default False): forged ones are rejected,
+        so only the attack's blocking part acts (``fakeack.attacks.discard_forgeries``); the
+        scenario's ``attack`` is then that part.
 
     Raises
     ------
@@ -122,11 +126,16 @@ class Scenario:
         attack: object = None,
         *,
         max_states: int = DEFAULT_MAX_STATES,
+        authenticated: bool = False,
     ) -> None:
         self._core_system = compiled(system)
         self.system = system
         self.channel: Channel = as_channel(channel, "channel")
         self.schedule: OnlineDesign | OfflineSchedule = _schedule(schedule)
+        self.authenticated = bool(authenticated)
+        if self.authenticated and attack is not None:
+            design = self.schedule if isinstance(self.schedule, OnlineDesign) else None
+            attack = discard_forgeries(attack, channel=self.channel, design=design)
         self.attack: ScenarioAttack | None = _attack(attack)
         self.max_states = as_int("max_states", max_states, minimum=1)
         if isinstance(self.schedule, OfflineSchedule) and self.attack is not None:

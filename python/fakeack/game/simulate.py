@@ -12,6 +12,7 @@ from .._internal.progress import Progress
 from .._internal.types import FloatArray, IntArray, RatioLike
 from .._internal.validate import as_int, as_probability
 from ..attacks._args import required
+from ..attacks.automata import AttackerAutomaton, discard_forgeries
 from ..attacks.kinds import AttackLike, as_attack, core_attack
 from ..detection.count import alarm_bounds, harmful_bound
 from ..detection.interval_test import cached_interval_test
@@ -88,6 +89,7 @@ def simulate_game(
     beta_bar: float | None = None,
     progress: bool | None = None,
     lam: float | None = None,
+    authenticated: bool = False,
 ) -> GameSimulation:
     r"""Closed-loop Monte Carlo of the game: the real protocol with the sensor's test and fall-back.
 
@@ -137,6 +139,9 @@ def simulate_game(
     lam : float, optional
         The former name of ``channel`` (a float): ``simulate_game(system, lam=0.5, ...)`` still
         works; giving both is a ``TypeError``.
+    authenticated : bool, optional
+        Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): only
+        the attack's blocking part is played.
 
     Returns
     -------
@@ -159,6 +164,10 @@ def simulate_game(
         raise ValueError(f"seed must be below 2**64, got {seed}")
     burn_in = as_int("burn_in", burn_in, minimum=0)
     att = as_attack(attack)
+    if authenticated:
+        kept = discard_forgeries(att)
+        assert not isinstance(kept, AttackerAutomaton)  # a built-in attack stays built-in
+        att = kept
     if is_paper_channel(ch):
         setting = _Setting.make(system, as_probability(name, float(ch.low[0])), ratio_, n_steps, beta_bar)
         kernel = PlayedGame(
