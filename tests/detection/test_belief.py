@@ -93,7 +93,7 @@ def test_bad_arguments_name_themselves():
         fa.detection_probability(0.5, 2, None, 1000, 0.01, lam_range=(0.6, 0.4))
     with pytest.raises(TypeError, match="lam_range must be a pair"):
         fa.detection_probability(0.5, 2, None, 1000, 0.01, lam_range=0.5)
-    with pytest.raises(ValueError, match="test: with a Markov channel"):
+    with pytest.raises(ValueError, match="only the count and support tests"):
         fa.detection_probability(0.5, 2, None, 1000, 0.01, test="interval", true_channel=0.48)
     with pytest.raises(ValueError, match="beta_bar"):
         fa.detection_probability(GE, 2, None, 1000, 0.01, beta_bar=0.3)

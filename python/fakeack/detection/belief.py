@@ -13,13 +13,14 @@ false-alarm rate at most alpha at each of them.
 from __future__ import annotations
 
 import math
+from typing import cast
 
 import numpy as np
 from scipy.special import ndtr
 
 from .._internal.validate import as_int, as_probability
 from ..attacks.automata import AttackerAutomaton, MimicryAttack
-from ..attacks.kinds import Attack, as_attack
+from ..attacks.kinds import Attack, FlagInjection, as_attack
 from ..model.channels import Channel, as_channel, is_paper_channel
 from ..model.schedules import OnlineDesign
 from .count import (
@@ -104,11 +105,16 @@ def count_probability(
     bounds: tuple[int, int], truth: Channel, design: OnlineDesign, n: int, attack: object
 ) -> float:
     """P(N <= lo or N >= hi) for the window's count under the true channel and the attack."""
-    if is_paper_channel(truth) and (attack is None or isinstance(attack, Attack)):
+    # The renewal gap laws take the built-in attacks with min_gap = 1.
+    renewal = attack is None or (
+        isinstance(attack, Attack) and not (isinstance(attack, FlagInjection) and attack.min_gap > 1)
+    )
+    if is_paper_channel(truth) and renewal:
+        built_in = cast("Attack | None", attack)
         lam = float(truth.low[0])
         if uses_exact_law(n, lam, design):
-            return exact_alarm_probability(bounds, exact_count_law(n, lam, design, attack), None)
-        return count_alarm_probability(bounds, n, count_moments(lam, design, n, attack), None)
+            return exact_alarm_probability(bounds, exact_count_law(n, lam, design, built_in), None)
+        return count_alarm_probability(bounds, n, count_moments(lam, design, n, built_in), None)
     process = flag_process(truth, design, attack)
     if n * process.rate < EXACT_BELOW:
         return exact_alarm_probability(bounds, process.count_law(n), None)
@@ -148,8 +154,9 @@ def belief_probability(
         return flag_process(truth, design, att).short_gap_probability(n, gap)
     if test != "count":
         raise ValueError(
-            "test: with a Markov channel, true_channel or lam_range only the count test is computed "
-            f"(the interval test's law assumes the believed i.i.d. channel), got {test!r}"
+            "test: with a Markov channel, true_channel, lam_range, mimicry, an attacker automaton or a "
+            "forger with min_gap > 1 only the count and support tests are computed (the interval "
+            f"test's gap laws take the paper's channel and the built-in attacks), got {test!r}"
         )
     if beta_bar is not None:
         raise ValueError(

@@ -12,7 +12,7 @@ from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
 from ..attacks._args import required
 from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeries
-from ..attacks.kinds import Attack, AttackLike, as_attack
+from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack
 from ..model.channels import ChannelLike, as_channel, channel_argument, is_paper_channel
 from ..model.schedules import OnlineDesign, check_online, check_online_channel
 from . import _quadform
@@ -304,6 +304,7 @@ def detection_probability(
         played = discard_forgeries(attack, channel=truth, design=OnlineDesign(z0, mu))
     if (
         isinstance(played, (AttackerAutomaton, MimicryAttack))
+        or (isinstance(played, FlagInjection) and played.min_gap > 1)  # the gap laws take min_gap = 1
         or test == "support"
         or true_channel is not None
         or lam_range is not None
