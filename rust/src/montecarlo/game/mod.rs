@@ -15,7 +15,7 @@
 //!
 //! Per step: the sensor's power (online: high iff a flag-ACK reached it last step; offline: the
 //! pattern), the arrival (on the i.i.d. channel always at high power, with probability λ at low;
-//! on a Markov channel in state c_k with probability high[c_k] or low[c_k], see below), the
+//! on a Markov channel in state c_k with probability `high[c_k]` or `low[c_k]`, see below), the
 //! holding time τ
 //! and Tr P_k = Tr h^τ(P̄), the detector's zero count z (reset by an arrival; a flag sent last step
 //! had reset the memory, so a loss makes z = 1), its flag (at z = z0 with probability μ, always
@@ -24,9 +24,9 @@
 //! [`crate::chain::general::capped_attack_chain`], which the tests compare with.
 //!
 //! A Markov channel ([`MarkovChannel`], the package's convention): K states, P row-stochastic
-//! with one closed class, P[i][j] = P(c_{k+1} = j | c_k = i); given c_k the step's packet
-//! arrives independently of everything else with probability low[c_k] at low power and
-//! high[c_k] at high power (a high-power packet may be lost); c_1 has the stationary law of P.
+//! with one closed class, `P[i][j]` = P(c_{k+1} = j | c_k = i); given c_k the step's packet
+//! arrives independently of everything else with probability `low[c_k]` at low power and
+//! `high[c_k]` at high power (a high-power packet may be lost); c_1 has the stationary law of P.
 //! Flag-ACKs are not subject to the channel. The exact engine ([`crate::engine`]) has the same
 //! conventions, and the tests compare with it.
 //!
