@@ -9,7 +9,7 @@ use super::tables::Plan;
 use super::{Moments, WIDTH};
 use crate::error::{Error, Result};
 use crate::montecarlo::cpu::Avx2;
-use crate::montecarlo::rng::{SplitMix64, Xoshiro256pp};
+use crate::montecarlo::rng::{xoshiro256pp_x4, SplitMix64, Xoshiro256pp};
 use crate::montecarlo::state::TileErrors;
 use crate::montecarlo::{BLOCK_RUNS, CHUNK_STEPS};
 
@@ -44,28 +44,6 @@ const _: () = assert!(CHUNK_STEPS as u64 <= FIELD);
 /// The packed counter increment of a step, by `flag << 1 | deliver`: sent in bits 0..21,
 /// blocked in 21..42, forged from 42.
 const INCREMENT: [u64; 4] = [0, 1 << FORGED_SHIFT, 1 | (1 << BLOCKED_SHIFT), 1];
-
-/// xoshiro256++ steps of the [`WIDTH`] transposed streams (`s[w][l]`: word w of stream l),
-/// lane by lane the arithmetic of [`Xoshiro256pp::next_u64`]; it vectorises on AVX2.
-#[inline(always)]
-fn xoshiro256pp_lanes(s: &mut [[u64; WIDTH]; 4]) -> [u64; WIDTH] {
-    let [s0, s1, s2, s3] = s;
-    let mut out = [0u64; WIDTH];
-    for i in 0..WIDTH {
-        out[i] = s0[i]
-            .wrapping_add(s3[i])
-            .rotate_left(23)
-            .wrapping_add(s0[i]);
-        let t = s1[i] << 17;
-        s2[i] ^= s0[i];
-        s3[i] ^= s1[i];
-        s1[i] ^= s2[i];
-        s0[i] ^= s3[i];
-        s2[i] ^= t;
-        s3[i] = s3[i].rotate_left(45);
-    }
-    out
-}
 
 /// What a step costs a run.
 trait Cost {
@@ -209,19 +187,19 @@ impl Runs {
                 let pattern_high = if ONLINE { 0 } else { pattern[pos] };
                 // Every run draws the same words each step: the arrival, the memory (μ), the
                 // attacker, the channel, each only where the plan has it.
-                let u_arrive = xoshiro256pp_lanes(&mut self.rng);
+                let u_arrive = xoshiro256pp_x4(&mut self.rng);
                 let u_mu = if ONLINE && MU_DRAW {
-                    xoshiro256pp_lanes(&mut self.rng)
+                    xoshiro256pp_x4(&mut self.rng)
                 } else {
                     [0; WIDTH]
                 };
                 let u_attack = if ONLINE {
-                    xoshiro256pp_lanes(&mut self.rng)
+                    xoshiro256pp_x4(&mut self.rng)
                 } else {
                     [0; WIDTH]
                 };
                 let u_channel = if MARKOV {
-                    xoshiro256pp_lanes(&mut self.rng)
+                    xoshiro256pp_x4(&mut self.rng)
                 } else {
                     [0; WIDTH]
                 };
@@ -265,7 +243,7 @@ impl Runs {
                         self.c[l] = plan.channel.draw(c, u_channel[l]) as usize;
                     }
                 }
-                add_row(slot, &row);
+                *slot += lane_sum(&row);
                 if !ONLINE {
                     pos += 1;
                     if pos == pattern.len() {
@@ -355,17 +333,13 @@ fn run_group<C: Cost>(
     }
 }
 
-/// Adds a step's values of the group's runs to the block's sum, four runs at a time, each four
-/// as `(v0 + v1) + (v2 + v3)`: every slot of the sum receives the same additions in the same
-/// order as with groups of four run one after the other, so the results do not depend on
-/// [`WIDTH`].
+/// Fixed-order sum of the runs' values (four runs a group: the streams' xoshiro256++ steps are
+/// [`xoshiro256pp_x4`]'s, which vectorise on AVX2).
 #[inline(always)]
-fn add_row(slot: &mut f64, v: &[f64; WIDTH]) {
-    for q in v.chunks_exact(4) {
-        *slot += (q[0] + q[1]) + (q[2] + q[3]);
-    }
+fn lane_sum(v: &[f64; WIDTH]) -> f64 {
+    (v[0] + v[1]) + (v[2] + v[3])
 }
-const _: () = assert!(WIDTH % 4 == 0);
+const _: () = assert!(WIDTH == 4);
 
 /// Runs block `block` of the plan.
 pub(super) fn run_block(
