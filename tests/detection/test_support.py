@@ -16,23 +16,8 @@ def protocol_short_gap_rate(lam, z0, gamma, beta, n, runs, burn, seed):
     loss adds one to the zero count, an arrival resets it; at z0 a flag is sent and the memory
     restarts; the attacker blocks a genuine flag with probability beta and forges one with
     probability gamma on a step without a genuine flag."""
-    rng = np.random.default_rng(seed)
-    high = np.ones(runs, bool)
-    z = np.zeros(runs, int)
-    age = np.full(runs, 10**9)
-    alarm = np.zeros(runs, bool)
-    for k in range(burn + n):
-        arrive = high | (rng.random(runs) < lam)
-        z = np.where(arrive, 0, z + 1)
-        flag = ~arrive & (z >= z0)
-        z = np.where(flag, 0, z)
-        deliver = (flag & (rng.random(runs) >= beta)) | (~flag & (rng.random(runs) < gamma))
-        age += 1
-        if k >= burn:
-            alarm |= deliver & (age < z0 + 1)
-        age = np.where(deliver, 0, age)
-        high = deliver
-    return alarm.mean()
+    short, _ = protocol_window_counts(lam, z0, gamma, beta, n, runs, burn, seed)
+    return short.mean()
 
 
 @pytest.mark.parametrize(("gamma", "beta"), [(0.05, 0.0), (0.036465, 0.2)])
@@ -113,3 +98,78 @@ def test_the_careful_rate_matching_forger_is_unseen_by_the_count_and_support_tes
     assert fa.detection_probability(0.5, 2, careful, 1000, 0.01) == pytest.approx(0.01, abs=0.002)
     with pytest.raises(ValueError, match="only the count and support tests"):
         fa.detection_probability(0.5, 2, careful, 1000, 0.01, test="interval")
+
+
+def protocol_window_counts(lam, z0, gamma, beta, n, runs, burn, seed):
+    """As :func:`protocol_short_gap_rate`, also returning each window's count of delivered
+    flag-ACKs (forged ones included: the sensor cannot tell them apart)."""
+    rng = np.random.default_rng(seed)
+    high = np.ones(runs, bool)
+    z = np.zeros(runs, int)
+    age = np.full(runs, 10**9)
+    short = np.zeros(runs, bool)
+    count = np.zeros(runs, int)
+    for k in range(burn + n):
+        arrive = high | (rng.random(runs) < lam)
+        z = np.where(arrive, 0, z + 1)
+        flag = ~arrive & (z >= z0)
+        z = np.where(flag, 0, z)
+        deliver = (flag & (rng.random(runs) >= beta)) | (~flag & (rng.random(runs) < gamma))
+        age += 1
+        if k >= burn:
+            short |= deliver & (age < z0 + 1)
+            count += deliver
+        age = np.where(deliver, 0, age)
+        high = deliver
+    return short, count
+
+
+@pytest.mark.parametrize(
+    ("gamma", "beta", "n", "alternative"),
+    [(0.002, 0.0, 200, "two-sided"), (0.01, 0.2, 200, "less"), (0.0004, 0.1, 1000, "two-sided")],
+)
+def test_the_count_test_with_the_support_check_is_the_protocols(gamma, beta, n, alternative):
+    """support=True (the default): the window alarms if either alarms, computed exactly from the
+    joint law of short gaps and the count; against windows of the protocol with the count test's
+    own alarm region."""
+    runs = 100_000
+    attack = fa.FlagInjection(gamma, block=fa.RandomBlocking(beta)) if beta else fa.FlagInjection(gamma)
+    p = fa.detection_probability(0.5, 2, attack, n, 0.01, alternative=alternative)
+    alone = fa.detection_probability(0.5, 2, attack, n, 0.01, alternative=alternative, support=False)
+    p_s = fa.detection_probability(0.5, 2, attack, n, 0.01, test="support")
+    lo, hi = fa.detection.count_alarm_bounds(0.5, 2, n, 0.01, alternative)
+    short, count = protocol_window_counts(0.5, 2, gamma, beta, n, runs, 300, seed=11)
+    sim = np.mean(short | (count <= lo) | (count >= hi))
+    assert 0.05 < p_s < 0.95 and p > max(p_s, alone) + 0.003  # both parts matter here
+    assert abs(sim - p) < 4 * np.sqrt(p * (1 - p) / runs), (sim, p)
+
+
+def test_without_forgery_the_support_check_changes_nothing():
+    for attack in [None, fa.PeriodicBlocking(1, 5), fa.RandomBlocking(0.3), fa.FlagInjection(0.1, min_gap=3)]:
+        for test in ["count"] + (["interval"] if not isinstance(attack, fa.FlagInjection) else []):
+            on = fa.detection_probability(0.5, 2, attack, 1000, 0.01, test=test)
+            assert on == fa.detection_probability(0.5, 2, attack, 1000, 0.01, test=test, support=False)
+
+
+def test_the_interval_test_with_the_support_check_warns_where_it_assumes_independence():
+    attack = fa.FlagInjection(0.0004)
+    p_s = fa.detection_probability(0.5, 2, attack, 1000, 0.01, test="support")
+    p_x = fa.detection_probability(0.5, 2, attack, 1000, 0.01, test="interval", support=False)
+    with pytest.warns(UserWarning, match="combined as independent"):
+        p = fa.detection_probability(0.5, 2, attack, 1000, 0.01, test="interval")
+    assert p == pytest.approx(1 - (1 - p_s) * (1 - p_x))
+    # A forger seen surely: no approximation, no warning.
+    assert fa.detection_probability(0.5, 2, fa.FlagInjection(0.2), 1000, 0.01, test="interval") > 1 - 1e-9
+    with pytest.raises(TypeError, match="support must be True or False"):
+        fa.detection_probability(0.5, 2, attack, 1000, 0.01, support=1)
+
+
+def test_the_harmful_rule_with_the_support_check():
+    """P(alarm and N <= harm): at a harm bound above every count it is the plain combination, and
+    it never exceeds it."""
+    attack = fa.FlagInjection(0.002)
+    p = fa.detection_probability(0.5, 2, attack, 200, 0.01)
+    high = fa.detection_probability(0.5, 2, attack, 200, 0.01, beta_bar=-10.0)
+    low = fa.detection_probability(0.5, 2, attack, 200, 0.01, beta_bar=0.5)
+    assert high == pytest.approx(p, abs=1e-12)
+    assert 0.0 <= low < p

@@ -103,6 +103,7 @@ def test_payoff_is_the_window_chain_average(paper, policy, attack):
             policy.test,
             policy.alternative,
             beta_bar=fa.choose_schedule(paper, LAM, RATIO, 0).beta_bar if policy.rule == "harmful" else None,
+            support=False,  # the payoff's tests run alone
         )
     )
     j, hp = _chain_payoff(j_att, j_off, hp_att, 1 / 7, d, k)
@@ -165,7 +166,7 @@ def test_detection_probability_against_simulated_windows(attack, test, alpha):
     rate, se = (
         (sim.false_alarm, sim.false_alarm_stderr) if attack is None else (sim.detection, sim.detection_stderr)
     )
-    p = fa.detection_probability(LAM, 2, attack, n, alpha, test)
+    p = fa.detection_probability(LAM, 2, attack, n, alpha, test, support=False)  # the simulated test alone
     assert abs(rate - p) <= 3 * max(se, math.sqrt(p * (1 - p) / runs)) + 1e-9, (rate, se, p)
     if attack is None:
         assert 0.5 * alpha <= rate <= 1.5 * alpha

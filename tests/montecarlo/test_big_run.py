@@ -29,7 +29,9 @@ LAM, Z0, HORIZON, RUNS = 0.5, 2, 10_000, 1_000_000
 
 def _traces(depth: int) -> np.ndarray:
     """Tr h^tau(P_bar), tau = 0..depth, with P_bar the local filter's a-posteriori covariance."""
-    prior = float(solve_discrete_are(np.array([[A]]), np.array([[C]]), np.array([[Q]]), np.array([[R]]))[0, 0])
+    prior = float(
+        solve_discrete_are(np.array([[A]]), np.array([[C]]), np.array([[Q]]), np.array([[R]]))[0, 0]
+    )
     p = prior - prior * C * C * prior / (C * prior * C + R)
     out = [p]
     for _ in range(depth):

@@ -4,7 +4,8 @@ count and of X², with exact gap laws), and simulated detection rates that check
 from __future__ import annotations
 
 import math
-from typing import TypeAlias, cast
+import warnings
+from typing import Any, TypeAlias, cast
 
 import numpy as np
 
@@ -16,10 +17,11 @@ from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack
 from ..model.channels import ChannelLike, as_channel, channel_argument, is_paper_channel
 from ..model.schedules import OnlineDesign, check_online, check_online_channel
 from . import _quadform
-from .belief import belief_probability, count_alarm_probability, count_moments
+from .belief import belief_bounds, belief_probability, count_alarm_probability, count_moments
 from .count import (
     alarm_bounds,
     check_alternative,
+    check_lam_range,
     exact_alarm_probability,
     exact_count_law,
     harmful_bound,
@@ -27,6 +29,7 @@ from .count import (
 )
 from .interval_test import IntervalTest, cached_interval_test
 from .intervals import design_walk
+from .process import flag_process
 
 __all__ = [
     "TESTS",
@@ -219,6 +222,7 @@ def detection_probability(
     lam_range: tuple[float, float] | None = None,
     lam: float | None = None,
     authenticated: bool = False,
+    support: bool = True,
 ) -> float:
     r"""Probability that the sensor's test raises an alarm in one window of ``n_steps`` steps.
 
@@ -286,6 +290,15 @@ def detection_probability(
     authenticated : bool, optional
         Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): only
         the attack's blocking part acts (``fakeack.attacks.discard_forgeries``).
+    support : bool, optional
+        Whether the count or interval test runs with the support check beside it (default True):
+        the window alarms if either does. Only a forger can make a gap shorter than the
+        attack-free minimum, so this changes nothing without forgery. Against a forger the count
+        test's combined probability :math:`1 - P(\text{no short gap}, lo < N < hi)` is exact
+        (:meth:`fakeack.FlagProcess.window_alarm_probability`); the interval test's is
+        :math:`1 - (1 - p_s)(1 - p_X)`, which treats the two as independent: it warns
+        (``UserWarning``) unless the exact value's bounds :math:`\max(p_s, p_X)` and
+        :math:`\min(1, p_s + p_X)` are within 1e-4. ``support=False`` gives the test alone.
 
     Returns
     -------
@@ -297,6 +310,96 @@ def detection_probability(
     >>> 0.005 < p < 0.015
     True
     """
+    if not isinstance(support, bool):
+        raise TypeError(f"support must be True or False, got {support!r}")
+    args = (channel, z0, attack, n_steps, alpha, test, alternative, mu)
+    kw: dict[str, Any] = {
+        "beta_bar": beta_bar,
+        "true_channel": true_channel,
+        "lam_range": lam_range,
+        "lam": lam,
+        "authenticated": authenticated,
+    }
+    if not support or test == "support" or not _forges(attack, authenticated):
+        return _probability(*args, **kw)
+    gaps = {**kw, "beta_bar": None}
+    p_s = _probability(channel, z0, attack, n_steps, alpha, "support", alternative, mu, **gaps)
+    if p_s == 0.0:
+        return _probability(*args, **kw)
+    if test == "count":
+        return _count_with_support(args, kw)
+    p_x = _probability(*args, **kw)
+    lower, upper = max(p_s, p_x), min(1.0, p_s + p_x)  # the exact value lies between (Fréchet)
+    combined = 1.0 - (1.0 - p_s) * (1.0 - p_x)
+    if upper - lower <= _PINNED:
+        return combined
+    warnings.warn(
+        f"detection_probability: the interval test and the support check combined as independent "
+        f"(support {p_s:.4g}, interval {p_x:.4g}; the exact value lies in [{max(p_s, p_x):.4g}, "
+        f"{min(1.0, p_s + p_x):.4g}]); the count test's combination is exact",
+        UserWarning,
+        stacklevel=2,
+    )
+    return combined
+
+
+#: Bounds on the interval test's combination with the support check this close pin it without a warning.
+_PINNED = 1e-4
+
+
+def _forges(attack: object, authenticated: bool) -> bool:
+    """Whether the attack may forge flag-ACKs that the sensor accepts (only forgery shortens gaps)."""
+    if authenticated or attack is None:
+        return False
+    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
+        return True
+    if isinstance(attack, FlagInjection):
+        return attack.gamma > 0
+    return isinstance(attack, str) and "inject" in attack
+
+
+def _count_with_support(args: tuple[Any, ...], kw: dict[str, Any]) -> float:
+    """The count test with the support check, from the joint law of short gaps and the count
+    (``args`` and ``kw`` as :func:`_probability` takes them)."""
+    channel, z0, attack, n_steps, alpha, _, alternative, mu = args
+    beta_bar, true_channel, lam_range = kw["beta_bar"], kw["true_channel"], kw["lam_range"]
+    ch, _ = channel_argument(channel, kw["lam"], "detection_probability")
+    design = OnlineDesign(cast(int, z0), mu)
+    truth = ch if true_channel is None else as_channel(true_channel, "true_channel")
+    n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
+    span = None if lam_range is None else check_lam_range(lam_range)
+    level = as_probability("alpha", alpha)
+    bounds = belief_bounds(ch, design, n, level, check_alternative(alternative), span)
+    harm = None
+    if beta_bar is not None:
+        if not is_paper_channel(ch) or true_channel is not None or span is not None:
+            raise ValueError(
+                "beta_bar: the harmful rule is computed on the paper's channel with no true_channel "
+                "or lam_range"
+            )
+        harm = harmful_bound(float(ch.low[0]), design, n, as_real("beta_bar", beta_bar))
+    att = attack if isinstance(attack, (MimicryAttack, AttackerAutomaton)) else as_attack(attack)
+    gap = flag_process(ch, design).min_gap
+    return flag_process(truth, design, att).window_alarm_probability(n, gap, bounds, harm)
+
+
+def _probability(
+    channel: ChannelLike | None,
+    z0: int | None,
+    attack: AttackLike,
+    n_steps: int | None,
+    alpha: float | None,
+    test: str,
+    alternative: str,
+    mu: float,
+    *,
+    beta_bar: float | None,
+    true_channel: ChannelLike | None,
+    lam_range: tuple[float, float] | None,
+    lam: float | None,
+    authenticated: bool,
+) -> float:
+    """:func:`detection_probability` of one test, without the support check beside it."""
     ch, name = channel_argument(channel, lam, "detection_probability")
     played: object = attack
     if authenticated and attack is not None and z0 is not None:

@@ -160,6 +160,37 @@ class FlagProcess:
             seen |= frontier
         return 0
 
+    def _age_law(self, g: int) -> FloatArray:
+        """The stationary joint law f[age, state] of the state and the steps since the last
+        delivery (capped at g - 1): the chain run from the states' stationary law until it
+        settles."""
+        f = np.zeros((g, self.n_states))
+        f[g - 1] = self.stationary
+        for _ in range(10 * g + 200):
+            new = self._age_step(f)[0]
+            settled = np.abs(new - f).max() < 1e-15
+            f = new
+            if settled:
+                break
+        return f
+
+    def _age_step(self, f: FloatArray) -> tuple[FloatArray, float]:
+        """One step of (age, state) mass: the next mass with short-gap deliveries kept at age 0,
+        and the mass of those short-gap deliveries (an age below g - 1 at delivery)."""
+        g = f.shape[0]
+        D0t, D1t = self._transposed
+        delivered = D1t @ f.T  # (state, age)
+        moved = (D0t @ f.T).T
+        new = np.zeros_like(f)
+        new[0] = delivered.sum(axis=1)
+        new[1:] += moved[:-1]
+        new[g - 1] += moved[g - 1]
+        return new, float(delivered[:, : g - 1].sum())
+
+    @property
+    def _transposed(self) -> tuple[sp.csr_array, sp.csr_array]:
+        return self.D0.T.tocsr(), self.D1.T.tocsr()
+
     def short_gap_probability(self, n_steps: int, min_gap: int) -> float:
         r"""P(a flag-ACK reaches the sensor within ``min_gap - 1`` steps of the previous one, in a
         stationary window of ``n_steps`` steps): the support check's alarm probability.
@@ -172,35 +203,82 @@ class FlagProcess:
         g = as_int("min_gap", min_gap, minimum=1)
         if g == 1:
             return 0.0  # every gap is at least one step
-        # The joint stationary law of (state, age) with age = steps since the last delivery
-        # (capped at g): run the chain until it settles from the stationary law of the states.
-        S = self.n_states
-        D0t, D1t = self.D0.T.tocsr(), self.D1.T.tocsr()
-        f = np.zeros((g, S))
-        f[g - 1] = self.stationary
-        for _ in range(10 * g + 200):
-            new = np.zeros_like(f)
-            new[0] = D1t @ f.sum(axis=0)
-            moved = np.stack([D0t @ f[a] for a in range(g)])
-            new[1:] += moved[:-1]
-            new[g - 1] += moved[g - 1]
-            if np.abs(new - f).max() < 1e-15:
-                f = new
-                break
-            f = new
-        # Now the window: deliveries at an age below g - 1 (a gap of age + 1 < g steps) alarm;
-        # their mass is summed as it leaves (exactly 0 where no short gap can occur).
+        f = self._age_law(g)
+        D0t, D1t = self._transposed
         alarm = 0.0
         for _ in range(n):
-            delivered = [D1t @ f[a] for a in range(g)]
-            alarm += float(sum(d.sum() for d in delivered[: g - 1]))
+            delivered = D1t @ f.T  # (state, age): deliveries at an age below g - 1 alarm
+            alarm += float(delivered[:, : g - 1].sum())
+            moved = (D0t @ f.T).T
             new = np.zeros_like(f)
-            new[0] = delivered[g - 1]
-            moved = np.stack([D0t @ f[a] for a in range(g)])
+            new[0] = delivered[:, g - 1]
             new[1:] += moved[:-1]
             new[g - 1] += moved[g - 1]
             f = new
         return float(min(max(alarm, 0.0), 1.0))
+
+    def window_alarm_probability(
+        self, n_steps: int, min_gap: int, bounds: tuple[int, int], harm: int | None = None
+    ) -> float:
+        r"""P(the support check or the count test alarms) in a stationary window of ``n_steps``:
+        :math:`1 - P(\text{no gap below min\_gap and } lo < N < hi)`, exactly.
+
+        A forward recursion over (steps since the last delivery, state, count) in which a
+        short-gap delivery and a count reaching ``hi`` leave the recursion (both are alarms);
+        what is left at the end with a count above ``lo`` raised no alarm. With ``harm`` only
+        alarms with :math:`N \le` ``harm`` count (the harmful rule), through
+        :math:`P(N \le harm) - P(\text{no alarm}, N \le harm)`.
+
+        Parameters
+        ----------
+        n_steps : int
+            The window.
+        min_gap : int
+            The support check's shortest attack-free gap (:attr:`min_gap` of the attack-free
+            process).
+        bounds : (int, int)
+            The count test's alarm region: :math:`N \le lo` or :math:`N \ge hi`.
+        harm : int, optional
+            Only alarms with at most this count.
+
+        Returns
+        -------
+        float
+        """
+        n = as_int("n_steps", n_steps, minimum=1)
+        g = as_int("min_gap", min_gap, minimum=1)
+        lo, hi = int(bounds[0]), int(bounds[1])
+        top = max(min(hi, n + 1), 1)  # counts 0..top-1 stay; reaching hi is an alarm
+        if self.n_states * g * n * top > MAX_LAW_WORK:
+            raise ValueError(
+                f"n_steps = {n}: the joint law of the support check and the count needs about "
+                f"{self.n_states * g * n * top:.2g} operations, more than {MAX_LAW_WORK:.0e}"
+            )
+        D0t, D1t = self._transposed
+        # f[age, state, count]; age capped at g - 1 (g = 1: one age, no gap is short).
+        f = np.zeros((g, self.n_states, top))
+        f[:, :, 0] = self._age_law(g)
+        for _ in range(n):
+            new = np.zeros_like(f)
+            delivered = np.stack([D1t @ f[a] for a in range(g)])  # (age, state, count)
+            moved = np.stack([D0t @ f[a] for a in range(g)])
+            # A delivery at the largest age (a gap of at least g) moves the count up by one;
+            # deliveries at a smaller age are short gaps and leave.
+            new[0, :, 1:] = delivered[g - 1, :, :-1]
+            if g > 1:
+                new[1:] += moved[:-1]
+            new[g - 1] += moved[g - 1]
+            f = new
+        left = f.sum(axis=(0, 1))  # P(no alarm so far, N = c), c < top
+        quiet = left[max(lo + 1, 0) :]
+        if harm is None:
+            return float(min(max(1.0 - quiet.sum(), 0.0), 1.0))
+        if harm < 0:
+            return 0.0
+        law = self.count_law(n)
+        below = float(law[: harm + 1].sum())
+        quiet_harm = float(left[max(lo + 1, 0) : harm + 1].sum())
+        return float(min(max(below - quiet_harm, 0.0), 1.0))
 
     def count_law(self, n_steps: int, start: str = "stationary") -> FloatArray:
         r"""The exact law of the count :math:`N_n`: ``law[c] = P(N_n = c)``, c = 0..len-1.

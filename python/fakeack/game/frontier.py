@@ -93,7 +93,8 @@ def stealthy_frontier(
 
     Every attack of the family is scored by its exact stationary J (:func:`fakeack.j_attack`) and
     its detection probability (:func:`fakeack.detection_probability`, a window of ``n_steps`` at
-    level ``alpha``); the best admissible one is returned with the family's Pareto frontier.
+    level ``alpha``; the test alone, ``support=False``, as the game plays it); the best
+    admissible one is returned with the family's Pareto frontier.
 
     Families: ``"periodic"``, every :class:`fakeack.PeriodicBlocking` ``(r, t)`` with
     ``t <= t_max`` (pairs not in lowest terms included: they block longer runs);
@@ -149,7 +150,11 @@ def stealthy_frontier(
     grid = as_int("grid", grid, minimum=2, maximum=1001)
     attacks = _candidates(family, lam, design, t_max, grid)
     j = np.array([j_attack(system, lam, z0, mu=mu, attack=a) for a in attacks])
-    d = np.array([detection_probability(lam, z0, a, n, alpha, test, alternative, mu) for a in attacks])
+    # The flag-timing test alone, as the game's payoff plays it (the support check would see the
+    # "random+inject" family's naive forger in almost every window).
+    d = np.array(
+        [detection_probability(lam, z0, a, n, alpha, test, alternative, mu, support=False) for a in attacks]
+    )
     j_on = j_attack(system, lam, z0, mu=mu, attack=PeriodicBlocking(0, 1))
     # Pareto frontier: by detection (ties: larger J first), keep each new maximum of J.
     order = np.lexsort((-j, d))
