@@ -7,6 +7,7 @@ import pytest
 
 import fakeack as fa
 from conftest import PAPER
+from conftest import PAPER_RATIO as RATIO
 from fakeack.attacks.automata import as_automaton, discard_forgeries
 
 GE = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
@@ -69,3 +70,41 @@ def test_the_game_plays_only_the_blocking_part(system):
     )
     b = fa.simulate_game(system, 0.5, "1/7", pol, None, 20_000, 8, seed=3)
     assert a.j == b.j and np.array_equal(a.delivered_per_run, b.delivered_per_run)
+
+
+def test_the_frontier_and_the_matrix_game_score_only_the_blocking_part(system):
+    """authenticated=True on stealthy_frontier, game_payoff and solve_game: the rate-matching
+    family becomes random blocking of the same budgets, a pure forger becomes no attack."""
+    args = (system, 0.5, 2, 1000, 0.01, "count")
+    inject = fa.stealthy_frontier(*args, "random+inject", 0.5, grid=5, authenticated=True)
+    random = fa.stealthy_frontier(*args, "random", 0.5, grid=5)
+    # Each candidate (budget beta, forging gamma) scores as random blocking at beta.
+    for d, j in zip(*inject.candidates, strict=True):
+        i = int(np.argmin(np.abs(random.candidates[1] - j)))
+        assert j == pytest.approx(random.candidates[1][i], rel=1e-12)
+        assert d == pytest.approx(random.candidates[0][i], rel=1e-12)
+    naive = fa.stealthy_frontier(*args, "random+inject", 0.5, grid=5)
+    # Unauthenticated, forging changes J: the forged flags buy high-power packets (lower J), the
+    # price the rate-matching forger pays to keep the count's mean.
+    assert naive.candidates[1].min() < inject.candidates[1].min() - 1e-3
+    policy = fa.SensorPolicy("count", 0.01, 2)
+    block = fa.RandomBlocking(0.2)
+    forger = fa.FlagInjection(0.03, block=block)
+    auth = fa.game_payoff(system, 0.5, RATIO, policy, forger, 1000, authenticated=True)
+    assert auth.j == fa.game_payoff(system, 0.5, RATIO, policy, block, 1000).j
+    sol = fa.solve_game(
+        system,
+        0.5,
+        RATIO,
+        1000,
+        0.01,
+        2,
+        [None, fa.FlagInjection(0.03), forger, block],
+        ["count"],
+        ["any"],
+        authenticated=True,
+    )
+    np.testing.assert_array_equal(sol.payoff[:, 1], sol.payoff[:, 0])
+    np.testing.assert_array_equal(sol.payoff[:, 2], sol.payoff[:, 3])
+    with pytest.raises(TypeError, match="authenticated must be True or False"):
+        fa.game_payoff(system, 0.5, RATIO, policy, forger, 1000, authenticated="yes")

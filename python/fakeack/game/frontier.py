@@ -16,6 +16,7 @@ from ..detection.count import check_alternative
 from ..detection.probability import check_test, detection_probability
 from ..model.schedules import OnlineDesign, check_online
 from ..model.system import LinearSystem, compiled
+from .payoff import played_attack
 
 __all__ = [
     "FAMILIES",
@@ -87,6 +88,7 @@ def stealthy_frontier(
     *,
     alternative: str = "two-sided",
     grid: int = 41,
+    authenticated: bool = False,
 ) -> StealthyFrontier:
     r"""The attack of a family that maximises J subject to a detection probability per window of at
     most ``max_detection``.
@@ -129,6 +131,10 @@ def stealthy_frontier(
         The count test's alternative (default two-sided).
     grid : int, optional
         Budgets in the random families' grids (default 41).
+    authenticated : bool, optional
+        Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): each
+        attack is then scored by its blocking part (``fakeack.attacks.discard_forgeries``), so a
+        forger gains nothing from forging.
 
     Returns
     -------
@@ -149,11 +155,12 @@ def stealthy_frontier(
     t_max = as_int("t_max", t_max, minimum=1, maximum=500)
     grid = as_int("grid", grid, minimum=2, maximum=1001)
     attacks = _candidates(family, lam, design, t_max, grid)
-    j = np.array([j_attack(system, lam, z0, mu=mu, attack=a) for a in attacks])
+    played = [played_attack(a, authenticated) for a in attacks]
+    j = np.array([j_attack(system, lam, z0, mu=mu, attack=a) for a in played])
     # The flag-timing test alone, as the game's payoff plays it (the support check would see the
     # "random+inject" family's naive forger in almost every window).
     d = np.array(
-        [detection_probability(lam, z0, a, n, alpha, test, alternative, mu, support=False) for a in attacks]
+        [detection_probability(lam, z0, a, n, alpha, test, alternative, mu, support=False) for a in played]
     )
     j_on = j_attack(system, lam, z0, mu=mu, attack=PeriodicBlocking(0, 1))
     # Pareto frontier: by detection (ties: larger J first), keep each new maximum of J.
@@ -168,7 +175,7 @@ def stealthy_frontier(
     if ok.size:
         i = int(ok[np.argmax(j[ok])])
         att, ji, di = attacks[i], float(j[i]), float(d[i])
-        hp = high_power_rate(lam, z0, att, mu)
+        hp = high_power_rate(lam, z0, played[i], mu)
     else:
         att, ji, di, hp = None, float("nan"), float("nan"), float("nan")
     return StealthyFrontier(

@@ -11,6 +11,7 @@ import numpy as np
 
 from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_int, as_probability, as_ratio, as_real
+from ..attacks.automata import AttackerAutomaton, discard_forgeries
 from ..attacks.chain import j_attack
 from ..attacks.kinds import Attack, AttackLike, PeriodicBlocking, as_attack
 from ..attacks.rates import design_high_power_rate
@@ -148,6 +149,17 @@ class Payoff:
     j_offline: float
 
 
+def played_attack(attack: Attack | None, authenticated: bool) -> Attack | None:
+    """The attack as the sensor meets it: without its forgeries when flag-ACKs are authenticated."""
+    if not isinstance(authenticated, bool):
+        raise TypeError(f"authenticated must be True or False, got {authenticated!r}")
+    if not authenticated:
+        return attack
+    kept = discard_forgeries(attack)
+    assert not isinstance(kept, AttackerAutomaton)  # a built-in attack stays built-in
+    return kept
+
+
 def _payoff(setting: _Setting, policy: SensorPolicy, attack: Attack | None, d: float | None = None) -> Payoff:
     j_att, hp_att = setting.attack_costs(attack)
     if policy.test == "offline":
@@ -170,6 +182,7 @@ def game_payoff(
     n_steps: int,
     *,
     beta_bar: float | None = None,
+    authenticated: bool = False,
 ) -> Payoff:
     r"""The payoff of a (policy, attack) pair: the renewal average over online and fall-back windows.
 
@@ -194,8 +207,12 @@ def game_payoff(
     beta_bar : float, optional
         The sensor's threshold for the harmful rule (default: the large-period β̄ of
         :func:`fakeack.choose_schedule`).
+    authenticated : bool, optional
+        Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): the
+        attack is then scored by its blocking part (``fakeack.attacks.discard_forgeries``), so a
+        forger gains nothing from forging.
     """
     if not isinstance(policy, SensorPolicy):
         raise TypeError(f"policy must be a fakeack.SensorPolicy, got {type(policy).__name__}")
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
-    return _payoff(setting, policy, as_attack(attack))
+    return _payoff(setting, policy, played_attack(as_attack(attack), authenticated))

@@ -13,7 +13,7 @@ from .._internal.types import FloatArray, RatioLike
 from ..attacks.kinds import Attack, AttackLike, as_attack
 from ..detection.count import check_alternative
 from ..model.system import LinearSystem
-from .payoff import _payoff, _Setting
+from .payoff import _payoff, _Setting, played_attack
 from .policies import SensorPolicy, _policies
 
 __all__ = [
@@ -113,6 +113,7 @@ def solve_game(
     *,
     alternative: str = "two-sided",
     beta_bar: float | None = None,
+    authenticated: bool = False,
 ) -> GameSolution:
     r"""Solve the zero-sum game between the sensor's policies and a list of attacks.
 
@@ -149,6 +150,10 @@ def solve_game(
         The count test's alternative (default two-sided).
     beta_bar : float, optional
         The harmful rule's threshold (default: the large-period β̄ of :func:`fakeack.choose_schedule`).
+    authenticated : bool, optional
+        Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): each
+        attack is then scored by its blocking part (``fakeack.attacks.discard_forgeries``), so a
+        forger gains nothing from forging.
 
     Returns
     -------
@@ -160,10 +165,11 @@ def solve_game(
     policies = _policies(tests, alphas, fallbacks, rules, alternative)
     attack_list = _attack_list(attacks)
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
+    played = [played_attack(a, authenticated) for a in attack_list]
     payoffs = []
     for p in policies:
-        d = setting.detections(p, attack_list)
-        payoffs.append([_payoff(setting, p, a, float(x)) for a, x in zip(attack_list, d, strict=True)])
+        d = setting.detections(p, played)
+        payoffs.append([_payoff(setting, p, a, float(x)) for a, x in zip(played, d, strict=True)])
     A = np.array([[x.j for x in row] for row in payoffs])
     H = np.array([[x.high_power for x in row] for row in payoffs])
     D = np.array([[x.detection for x in row] for row in payoffs])
