@@ -118,3 +118,31 @@ def test_detect_attack_with_a_lam_range_alarms_exactly_on_the_range_region():
         assert det.p_value >= plain.p_value and det.z_score == plain.z_score
     with pytest.raises(ValueError, match="lam_range"):
         fa.detect_attack(400, n, 0.5, 2, lam_range=(0.55, 0.45))
+
+
+def _renewal_gaps(lam, z0, n, rng):
+    """The gaps of one window of n steps of the attack-free flag process, drawn from the exact
+    gap law (the first gap reaches back before the window)."""
+    law = fa.flag_interval_law(lam, z0)
+    lengths = np.arange(1, len(law.pmf) + 1)
+    draws = rng.choice(lengths, size=n, p=law.pmf / law.pmf.sum())
+    return draws[: int(np.searchsorted(np.cumsum(draws), n, side="right"))]
+
+
+def test_the_interval_test_over_a_lam_range_alarms_only_where_every_lam_does():
+    rng = np.random.default_rng(5)
+    span = (0.45, 0.55)
+    grid = np.linspace(*span, 9)
+    seen = set()
+    for true_lam in (0.5, 0.4, 0.3):
+        for _ in range(15):
+            gaps = _renewal_gaps(true_lam, 2, 1000, rng)
+            ranged = fa.detect_intervals(gaps, 1000, 0.5, 2, lam_range=span)
+            each = [fa.detect_intervals(gaps, 1000, float(x), 2) for x in grid]
+            assert ranged.attack_detected == all(d.attack_detected for d in each)
+            assert ranged.p_value == pytest.approx(max(d.p_value for d in each))
+            assert ranged.p_value >= fa.detect_intervals(gaps, 1000, 0.5, 2).p_value
+            seen.add(ranged.attack_detected)
+    assert seen == {True, False}  # both outcomes occur, so the check has teeth
+    with pytest.raises(ValueError, match="lam_range"):
+        fa.detect_intervals(gaps, 1000, 0.5, 2, lam_range=(0.6, 0.4))

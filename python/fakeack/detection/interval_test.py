@@ -14,6 +14,7 @@ from .._internal.types import FloatArray, IntArray
 from .._internal.validate import as_int, as_probability
 from ..model.schedules import OnlineDesign, check_online
 from . import _quadform
+from .count import LAM_RANGE_POINTS, check_lam_range
 from .flags import as_gaps, attack_free_min_gap, flag_interval_moments
 from .intervals import design_walk
 
@@ -229,6 +230,7 @@ def detect_intervals(
     alpha: float = 0.01,
     *,
     support: bool = True,
+    lam_range: tuple[float, float] | None = None,
 ) -> IntervalDetection:
     r"""Test for a fake-ACK attacker from *when* flag-ACKs arrived in a window of ``n_steps`` steps.
 
@@ -251,6 +253,11 @@ def detect_intervals(
         Also alarm at any gap shorter than the attack-free minimum (z0 + 1 steps; z0 + 2 when
         mu = 0), which no attack-free window holds: the false-alarm rate stays alpha, and a forger
         that ignores the minimum is caught (default True).
+    lam_range : (float, float), optional
+        A sensor that knows only that lam lies in [lo, hi]: the window alarms only where the
+        test of every lam of the range alarms (at 9 points, ends included), so the false-alarm
+        rate is at most alpha at each of them, and ``p_value`` is the largest over the range;
+        ``statistic``, ``critical``, ``observed`` and ``expected`` stay those at ``lam``.
 
     Examples
     --------
@@ -267,12 +274,21 @@ def detect_intervals(
         raise ValueError(f"gaps: more flag-ACKs ({int(o.sum())}) than steps ({test.n_steps})")
     stat = float(np.sum((o - test.expected) ** 2 / test.expected))
     p = test.p_value(stat)
+    alarm = stat > test.critical
+    if lam_range is not None:
+        span = check_lam_range(lam_range)
+        for x in np.linspace(span[0], span[1], LAM_RANGE_POINTS):
+            t = interval_test(float(x), z0, n_steps, alpha, mu)
+            o_x = t.counts(gaps)
+            stat_x = float(np.sum((o_x - t.expected) ** 2 / t.expected))
+            alarm = alarm and stat_x > t.critical
+            p = max(p, t.p_value(stat_x))
     g = as_gaps(gaps)
     short = (
         bool(support) and bool(g.size) and int(g.min()) < attack_free_min_gap(OnlineDesign(test.z0, test.mu))
     )
     return IntervalDetection(
-        stat > test.critical or short,
+        alarm or short,
         stat,
         p,
         test.critical,
