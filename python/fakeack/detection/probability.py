@@ -210,7 +210,7 @@ def _joint_tail(test: IntervalTest, attack: AttackLike, s_hi: float) -> float:
 def detection_probability(
     channel: ChannelLike | None = None,
     z0: int | None = None,
-    attack: AttackLike = None,
+    attack: AttackLike | MimicryAttack | AttackerAutomaton = None,
     n_steps: int | None = None,
     alpha: float | None = None,
     test: str = "count",
@@ -260,7 +260,8 @@ def detection_probability(
     z0 : int
         Memory length of the event detector.
     attack : None or attack
-        Any attack (periodic or mask blocking, random blocking, flag injection, rate matching).
+        Any attack (periodic or mask blocking, random blocking, flag injection, rate matching,
+        :class:`fakeack.MimicryAttack`, :class:`fakeack.AttackerAutomaton`).
     n_steps : int
         Window length in steps.
     alpha : float
@@ -386,7 +387,7 @@ def _count_with_support(args: tuple[Any, ...], kw: dict[str, Any]) -> float:
 def _probability(
     channel: ChannelLike | None,
     z0: int | None,
-    attack: AttackLike,
+    attack: AttackLike | MimicryAttack | AttackerAutomaton,
     n_steps: int | None,
     alpha: float | None,
     test: str,

@@ -8,6 +8,7 @@ import numpy as np
 
 from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
+from ..attacks.automata import MimicryAttack, discard_forgeries
 from ..attacks.chain import j_attack
 from ..attacks.kinds import Attack, FlagInjection, PeriodicBlocking, RandomBlocking
 from ..attacks.random import rate_matching_attack
@@ -16,7 +17,6 @@ from ..detection.count import check_alternative
 from ..detection.probability import check_test, detection_probability
 from ..model.schedules import OnlineDesign, check_online
 from ..model.system import LinearSystem, compiled
-from .payoff import played_attack
 
 __all__ = [
     "FAMILIES",
@@ -26,14 +26,20 @@ __all__ = [
 
 
 #: The attack families searched.
-FAMILIES = ("periodic", "random", "random+inject")
+FAMILIES = ("periodic", "random", "random+inject", "careful", "mimicry")
+
+
+def families_for(test: str) -> tuple[str, ...]:
+    """The families :func:`stealthy_frontier` scores for ``test``: the interval test's gap laws
+    do not take the careful forger's ``min_gap > 1``."""
+    return FAMILIES if check_test(test) == "count" else tuple(f for f in FAMILIES if f != "careful")
 
 
 @dataclass(frozen=True)
 class StealthyFrontier:
     """The result of :func:`stealthy_frontier`."""
 
-    attack: Attack | None
+    attack: Attack | MimicryAttack | None
     """The attack of the family with the largest J whose detection probability per window is at
     most ``max_detection`` (``None`` if even no attack is detected more often, i.e. max_detection
     below the false-alarm rate)."""
@@ -46,7 +52,7 @@ class StealthyFrontier:
     frontier: tuple[FloatArray, FloatArray]
     """(detection, J) of the family's Pareto frontier (no other attack has higher J at lower
     detection), sorted by detection: J against detection probability, for plotting."""
-    frontier_attacks: list[Attack]
+    frontier_attacks: list[Attack | MimicryAttack]
     """The attacks on the frontier, in the same order."""
     candidates: tuple[FloatArray, FloatArray]
     """(detection, J) of every attack searched."""
@@ -58,19 +64,27 @@ class StealthyFrontier:
     j_online: float
 
 
-def _candidates(family: str, lam: float, design: OnlineDesign, t_max: int, grid: int) -> list[Attack]:
+def _candidates(
+    family: str, lam: float, design: OnlineDesign, t_max: int, grid: int
+) -> list[Attack | MimicryAttack]:
+    if family == "mimicry":
+        return [MimicryAttack()]
     if family == "periodic":
         return [PeriodicBlocking(r, t) for t in range(1, t_max + 1) for r in range(t)]
     betas = np.linspace(0.0, 1.0, grid)
     if family == "random":
         return [RandomBlocking(b) for b in betas]
-    out: list[Attack] = []
-    # A grid of (beta, gamma) and the rate-matching curve through it.
-    gammas = np.linspace(0.0, 0.2, (grid + 1) // 2)
+    out: list[Attack | MimicryAttack] = []
+    # A grid of (beta, gamma) and the rate-matching curve through it; the careful forger keeps
+    # every gap at least z0 + 1 (the support check's minimum) on a coarser grid, each of its
+    # points costing a pass over the engine's automaton.
+    careful = family == "careful"
+    gap = design.z0 + 1 if careful else 1
+    gammas = np.linspace(0.0, 0.2, 6 if careful else (grid + 1) // 2)
     for b in betas[:-1]:
         for g in gammas:
-            out.append(FlagInjection(g, RandomBlocking(b)))
-        out.append(rate_matching_attack(lam, design.z0, b, design.mu))
+            out.append(FlagInjection(g, RandomBlocking(b), min_gap=gap))
+        out.append(rate_matching_attack(lam, design.z0, b, design.mu, min_gap=gap))
     return out
 
 
@@ -103,7 +117,10 @@ def stealthy_frontier(
     ``"random"``, :class:`fakeack.RandomBlocking` on a grid of ``grid`` budgets in [0, 1];
     ``"random+inject"``, :class:`fakeack.FlagInjection` with independent blocking on a grid of
     budgets β and forging probabilities γ in [0, 0.2], plus the rate-matching attack
-    (:func:`fakeack.rate_matching_attack`) at each β.
+    (:func:`fakeack.rate_matching_attack`) at each β; ``"careful"``, the same forger respecting
+    the support check (``min_gap = z0 + 1``, six γ per β, and its rate-matching curve; count
+    test only); ``"mimicry"``, :class:`fakeack.MimicryAttack`, whose flag law is the
+    attack-free one, so its detection probability is the test's false-alarm rate.
 
     Parameters
     ----------
@@ -119,7 +136,7 @@ def stealthy_frontier(
         The test's false-alarm level, in (0, 1).
     test : {"count", "interval"}
         The sensor's test.
-    family : {"periodic", "random", "random+inject"}
+    family : {"periodic", "random", "random+inject", "careful", "mimicry"}
         The attacks searched.
     max_detection : float
         Largest admissible detection probability per window, in [0, 1].
@@ -155,12 +172,28 @@ def stealthy_frontier(
     t_max = as_int("t_max", t_max, minimum=1, maximum=500)
     grid = as_int("grid", grid, minimum=2, maximum=1001)
     attacks = _candidates(family, lam, design, t_max, grid)
-    played = [played_attack(a, authenticated) for a in attacks]
+    if not isinstance(authenticated, bool):
+        raise TypeError(f"authenticated must be True or False, got {authenticated!r}")
+    played = [discard_forgeries(a, channel=lam, design=design) if authenticated else a for a in attacks]
     j = np.array([j_attack(system, lam, z0, mu=mu, attack=a) for a in played])
     # The flag-timing test alone, as the game's payoff plays it (the support check would see the
-    # "random+inject" family's naive forger in almost every window).
+    # "random+inject" family's naive forger in almost every window). Mimicry delivers exactly the
+    # attack-free flag process, so every flag-timing test sees it at its false-alarm rate.
     d = np.array(
-        [detection_probability(lam, z0, a, n, alpha, test, alternative, mu, support=False) for a in played]
+        [
+            detection_probability(
+                lam,
+                z0,
+                None if isinstance(a, MimicryAttack) else a,
+                n,
+                alpha,
+                test,
+                alternative,
+                mu,
+                support=False,
+            )
+            for a in played
+        ]
     )
     j_on = j_attack(system, lam, z0, mu=mu, attack=PeriodicBlocking(0, 1))
     # Pareto frontier: by detection (ties: larger J first), keep each new maximum of J.

@@ -63,7 +63,13 @@ def plot_frontiers(
     else:
         axes = given_axes(ax, len(tests), "one per test")
         fig = figure_of(axes[0])
-    styles = {"periodic": ("C0", "-"), "random": ("C1", "--"), "random+inject": ("C2", "-.")}
+    styles = {
+        "periodic": ("C0", "-"),
+        "random": ("C1", "--"),
+        "random+inject": ("C2", "-."),
+        "careful": ("C3", ":"),
+        "mimicry": ("C4", (0, (1, 3))),
+    }
     for a, test in zip(axes, tests, strict=True):
         for f in (f for f in frontiers if f.test == test):
             color, ls = styles.get(f.family, ("C3", ":"))
