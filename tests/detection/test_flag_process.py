@@ -93,3 +93,23 @@ def test_bad_arguments_name_themselves():
         fa.flag_process(0.5, (2, 1.0))
     with pytest.raises(ValueError, match="channel must lie in"):
         fa.flag_process(1.5, fa.OnlineDesign(2))
+
+
+def test_a_burn_in_of_the_mixing_time_puts_simulated_windows_in_the_stationary_regime():
+    """PeriodicBlocking(8, 59): the attacker's phase mixes slowly (about 1.7e4 steps to 1e-3 in
+    total variation). After that burn-in the protocol's windows match the stationary detection
+    probability; after one window of burn-in they do not."""
+    attack = fa.PeriodicBlocking(8, 59)
+    design = fa.OnlineDesign(2)
+    k = fa.flag_process(0.5, design, attack).mixing_steps()
+    assert 10_000 < k < 30_000
+    assert fa.flag_process(0.5, design).mixing_steps() < 100  # no attack: a few gaps
+    p = fa.detection_probability(0.5, 2, attack, 1000, 0.01, support=False)
+    runs = 4000
+    mixed = fa.detection_rates(0.5, 2, attack, 1000, runs, alternative="two-sided", burn_in=k, seed=5)
+    short = fa.detection_rates(0.5, 2, attack, 1000, runs, alternative="two-sided", burn_in=1000, seed=5)
+    se = np.sqrt(p * (1 - p) / runs)
+    assert abs(mixed.detection - p) < 4 * se, (mixed.detection, p)
+    assert abs(short.detection - p) > 4 * se, (short.detection, p)
+    with pytest.raises(ValueError, match="tol"):
+        fa.flag_process(0.5, design, attack).mixing_steps(tol=1e-3, max_steps=100)

@@ -280,6 +280,40 @@ class FlagProcess:
         quiet_harm = float(left[max(lo + 1, 0) : harm + 1].sum())
         return float(min(max(below - quiet_harm, 0.0), 1.0))
 
+    def mixing_steps(self, tol: float = 1e-3, max_steps: int = 10**6) -> int:
+        r"""Steps after which the automaton, started from the paper's initial condition, is within
+        ``tol`` of its stationary law in total variation: the least k with
+        :math:`\tfrac12 \lVert p_0 K^k - \pi \rVert_1 \le` ``tol``.
+
+        A burn-in this long puts a simulated window in the stationary regime that
+        :func:`fakeack.detection_probability` describes, up to ``tol`` in every probability of the
+        window; the attacker's phase (a periodic attack's counter) is what mixes slowly.
+
+        Parameters
+        ----------
+        tol : float
+            Total-variation distance, in (0, 1).
+        max_steps : int
+            Refuse (``ValueError`` naming ``tol``) if the law has not come that close by then.
+
+        Returns
+        -------
+        int
+        """
+        tol = float(tol)
+        if not 0.0 < tol < 1.0:
+            raise ValueError(f"tol must lie in (0, 1), got {tol}")
+        limit = as_int("max_steps", max_steps, minimum=1)
+        Kt = (self.D0 + self.D1).T.tocsr()
+        p = self.initial.copy()
+        for k in range(limit + 1):
+            if 0.5 * float(np.abs(p - self.stationary).sum()) <= tol:
+                return k
+            p = Kt @ p
+        raise ValueError(
+            f"tol = {tol}: the automaton is not within it of its stationary law after {limit} steps"
+        )
+
     def count_law(self, n_steps: int, start: str = "stationary") -> FloatArray:
         r"""The exact law of the count :math:`N_n`: ``law[c] = P(N_n = c)``, c = 0..len-1.
 
