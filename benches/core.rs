@@ -439,6 +439,7 @@ fn bench_game(c: &mut Criterion) {
         },
         harmful_at_most: None,
         fallback: 2,
+        min_gap: 0,
     };
     let rate_matching =
         Attack::injection(0.0365, Some(Attack::random(0.2).expect("beta"))).expect("gamma");

@@ -245,4 +245,5 @@ def simulate_game(
     channel_low: list[float] | None = None,
     channel_high: list[float] | None = None,
     offline_pattern: list[bool] | None = None,
+    min_gap: int = 0,
 ) -> dict[str, Any]: ...

@@ -80,7 +80,7 @@ def test_short_window_detection_probabilities_match_the_monte_carlo(attack):
     """200-step windows (29 expected flags) after a burn-in of 400 steps, 20000 windows each."""
     p = fa.detection_probability(0.5, 2, attack, 200, 0.01, support=False)  # the simulated test alone
     r = fa.detection_rates(
-        0.5, 2, attack, n_steps=200, runs=20000, seed=3, alternative="two-sided", burn_in=400
+        0.5, 2, attack, n_steps=200, runs=20000, seed=3, alternative="two-sided", burn_in=400, support=False
     )
     assert abs(r.detection - p) < 4 * np.sqrt(p * (1 - p) / 20000)
     assert abs(r.false_alarm - fa.detection_probability(0.5, 2, None, 200, 0.01)) < 4 * np.sqrt(0.01 / 20000)

@@ -173,3 +173,64 @@ def test_the_harmful_rule_with_the_support_check():
     low = fa.detection_probability(0.5, 2, attack, 200, 0.01, beta_bar=0.5)
     assert high == pytest.approx(p, abs=1e-12)
     assert 0.0 <= low < p
+
+
+# ---------------------------------------------------------------------------------------------
+# The support check in the simulated windows (detection_rates, the closed-loop kernel).
+
+
+@pytest.mark.parametrize(("gamma", "n"), [(0.0005, 1000), (0.002, 200), (0.002, 1000)])
+def test_simulated_support_alarms_are_the_short_gap_probability(gamma, n):
+    """test="support": the check alone, on stationary windows (a burn-in of three windows),
+    against the flag process's exact recursion and detection_probability."""
+    runs = 8000
+    attack = fa.FlagInjection(gamma)
+    r = fa.detection_rates(0.5, 2, attack, n, runs, seed=3, test="support", burn_in=3 * n)
+    exact = fa.flag_process(0.5, fa.OnlineDesign(2), attack).short_gap_probability(n, 3)
+    assert exact == pytest.approx(fa.detection_probability(0.5, 2, attack, n, 0.01, test="support"), rel=1e-9)
+    assert 0.05 < exact < 0.95
+    assert abs(r.detection - exact) < 4 * np.sqrt(exact * (1 - exact) / runs), (r.detection, exact)
+    assert r.false_alarm == 0.0 and (r.test, r.alternative, r.support) == ("support", "two-sided", True)
+
+
+def test_a_window_alarms_when_its_test_or_the_check_does():
+    """Same seed, same windows: the alarms with the check are those of the test alone or of the
+    check alone, window by window."""
+    from fakeack.detection.rates import simulate_windows
+
+    design, attack, n = fa.OnlineDesign(2), fa.FlagInjection(0.002), 1000
+    args = (0.5, design, attack, n, 2000, 11)
+    for test in ("count", "interval"):
+        both, counts = simulate_windows(*args, test, 0.05, "two-sided", n)
+        alone, counts_alone = simulate_windows(*args, test, 0.05, "two-sided", n, support=False)
+        check, _ = simulate_windows(*args, "support", 0.05, "two-sided", n)
+        assert np.array_equal(both, np.maximum(alone, check)) and np.array_equal(counts, counts_alone)
+        assert 0 < alone.sum() and 0 < check.sum() and both.sum() > max(alone.sum(), check.sum())
+
+
+def test_the_gap_across_the_windows_start_counts():
+    """gamma = 1 delivers a flag-ACK on every step: a window of one step holds one flag-ACK, whose
+    gap (1) reaches back into the previous window, or to the run's start (step 0)."""
+    for burn_in in (0, 5):
+        r = fa.detection_rates(0.5, 2, fa.FlagInjection(1.0), 1, 100, seed=1, test="support", burn_in=burn_in)
+        assert r.detection == 1.0
+        s = fa.detection_rates(0.5, 2, fa.FlagInjection(1.0), 1, 100, seed=1, burn_in=burn_in, support=False)
+        assert s.detection == 0.0 and not s.support  # one flag-ACK is not below the count's bound
+
+
+def test_detection_rates_arguments_for_the_check():
+    with pytest.raises(ValueError, match="support: test='support' is the support check itself"):
+        fa.detection_rates(0.5, 2, fa.FlagInjection(0.1), 100, 10, test="support", support=False)
+    with pytest.raises(ValueError, match="alternative: the support test is two-sided"):
+        fa.detection_rates(0.5, 2, fa.FlagInjection(0.1), 100, 10, test="support", alternative="less")
+
+
+@pytest.mark.parametrize("test", ["count", "support"])
+def test_the_closed_loop_confirms_the_combined_detection_probability(test):
+    """detection_rates with the check beside the count test (the defaults on both sides) against
+    the exact joint law, within 4 standard errors."""
+    attack, n, runs = fa.FlagInjection(0.002), 200, 20_000
+    p = fa.detection_probability(0.5, 2, attack, n, 0.01, test=test)
+    r = fa.detection_rates(0.5, 2, attack, n, runs, seed=9, alternative="two-sided", test=test, burn_in=3 * n)
+    assert 0.05 < p < 0.95
+    assert abs(r.detection - p) < 4 * np.sqrt(p * (1 - p) / runs), (r.detection, p)

@@ -150,7 +150,8 @@ def test_detection_probability_against_simulated_windows(attack, test, alpha):
     # the formula is a large-sample approximation, checked at the README's 4000 windows (at 40,000
     # the interval test's shows a bias of up to 6%, about 5 standard errors: README).
     n, runs = 1000, 40_000 if attack is None else 4000
-    # detection_rates simulates attack-free windows beside; the attack-free case reads those.
+    # detection_rates simulates attack-free windows beside; the attack-free case reads those. The
+    # formula is the test's alone: without the support check, which sees the forgers here.
     sim = fa.detection_rates(
         LAM,
         2,
@@ -162,6 +163,7 @@ def test_detection_probability_against_simulated_windows(attack, test, alpha):
         test=test,
         alternative="two-sided",
         burn_in=n,
+        support=False,
     )
     rate, se = (
         (sim.false_alarm, sim.false_alarm_stderr) if attack is None else (sim.detection, sim.detection_stderr)
@@ -201,11 +203,12 @@ def test_detection_rates_default_is_the_one_sided_count_test_of_fresh_windows():
 CLOSED_LOOP = [
     (fa.SensorPolicy("count", 0.01, 1), fa.PeriodicBlocking(1, 5)),
     (fa.SensorPolicy("count", 0.05, 2), None),
-    (fa.SensorPolicy("interval", 0.05, 3), fa.rate_matching_attack(LAM, 2, 0.2)),
+    # The payoff formula is the test's alone: the forgers are played without the support check.
+    (fa.SensorPolicy("interval", 0.05, 3, support=False), fa.rate_matching_attack(LAM, 2, 0.2)),
     (fa.SensorPolicy("interval", 0.01, 1, "harmful"), fa.PeriodicBlocking(2, 3)),
     (fa.SensorPolicy("count", 0.01, 1, "harmful"), fa.RandomBlocking(0.35)),
     (fa.SensorPolicy("count", 0.05, 2), fa.RandomBlocking(0.05)),
-    (fa.SensorPolicy("interval", 0.05, 4), fa.FlagInjection(0.005)),
+    (fa.SensorPolicy("interval", 0.05, 4, support=False), fa.FlagInjection(0.005)),
     (fa.SensorPolicy("never"), fa.PeriodicBlocking(2, 3)),
     (fa.SensorPolicy("offline"), fa.PeriodicBlocking(2, 3)),
 ]

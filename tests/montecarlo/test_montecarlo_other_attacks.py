@@ -205,10 +205,12 @@ def test_rate_matching_hides_the_flag_rate_but_not_the_cost(paper):
 
 
 def test_detection_counts_forged_flags_as_delivered():
-    """The flag-count test sees blocking, but not the rate-matching injection beside it."""
+    """The flag-count test sees blocking, but not the rate-matching injection beside it; the support
+    check sees the injection's flag-ACKs that come too soon after the previous one."""
     blocked = fa.detection_rates(PAPER_LAM, Z0, fa.RandomBlocking(0.2), runs=500, seed=207)
-    hidden = fa.detection_rates(
-        PAPER_LAM, Z0, fa.rate_matching_attack(PAPER_LAM, Z0, 0.2), runs=500, seed=207
-    )
+    matching = fa.rate_matching_attack(PAPER_LAM, Z0, 0.2)
+    hidden = fa.detection_rates(PAPER_LAM, Z0, matching, runs=500, seed=207, support=False)
+    seen = fa.detection_rates(PAPER_LAM, Z0, matching, runs=500, seed=207)
     assert blocked.detection > 0.6
     assert hidden.detection < 0.06
+    assert seen.detection > 0.99 and seen.false_alarm == hidden.false_alarm

@@ -26,6 +26,13 @@ __all__ = [
 ]
 
 
+def paper_min_gap(design: OnlineDesign) -> int:
+    """The shortest gap between two flag-ACKs reaching the sensor without attack on the paper's
+    channel, where a high-power packet always arrives (:attr:`fakeack.FlagProcess.min_gap` in
+    closed form): z0 + 1, or z0 + 2 when mu = 0 (every flag then waits for z0 + 1 losses)."""
+    return int(design.z0) + (1 if design.mu > 0 else 2)
+
+
 def simulate_windows(
     lam: float,
     design: OnlineDesign,
@@ -38,15 +45,22 @@ def simulate_windows(
     alternative: str,
     burn_in: int,
     progress: bool | None = False,
+    *,
+    support: bool = True,
 ) -> tuple[FloatArray, FloatArray]:
     """Alarms (0/1) and delivered flag-ACKs of ``runs`` simulated windows of ``n`` steps, one per run,
-    after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back)."""
+    after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back).
+    ``support``: the window alarms at the support check too (the gap across its start counts);
+    ``test="support"`` is the support check alone."""
     from .._internal.progress import Progress
     from .flags import any_system
 
-    if test == "count":
+    if test == "support":
+        args: KernelTest = ("count", -1, n + 1, [], [], 0.0, None, 0)  # a count test that never alarms
+        support = True
+    elif test == "count":
         lo, hi = alarm_bounds(lam, design, n, alpha, alternative)
-        args: KernelTest = ("count", lo, hi, [], [], 0.0, None, 0)
+        args = ("count", lo, hi, [], [], 0.0, None, 0)
     else:
         t = cached_interval_test(lam, design, n, alpha)
         args = (
@@ -77,6 +91,7 @@ def simulate_windows(
             runs,
             seed,
             bar,
+            min_gap=paper_min_gap(design) if support else 0,
         )
     finally:
         bar.close()
@@ -105,6 +120,8 @@ class DetectionRates:
     test: str = "count"
     alternative: str = "less"
     burn_in: int = 0
+    support: bool = True
+    """Whether the windows alarmed at the support check too (always, for ``test="support"``)."""
 
 
 def detection_rates(
@@ -119,6 +136,7 @@ def detection_rates(
     test: str = "count",
     alternative: str | None = None,
     burn_in: int = 0,
+    support: bool = True,
 ) -> DetectionRates:
     """False-alarm and detection rates of the sensor's tests by Monte Carlo of the protocol.
 
@@ -130,7 +148,9 @@ def detection_rates(
     window starts from the paper's initial condition; a burn-in of a window or more puts the
     window near the stationary regime that :func:`fakeack.detection_probability` describes. Forged flag-ACKs
     (:class:`fakeack.FlagInjection`) count as delivered: the sensor cannot tell them from genuine
-    ones, which is how :func:`fakeack.rate_matching_attack` hides from the count test.
+    ones, which is how :func:`fakeack.rate_matching_attack` hides from the count test, though not
+    from the support check (``support``), which sees a flag-ACK sooner after the previous one than
+    any can without attack: a window alarms when its test or the check does.
 
     Parameters
     ----------
@@ -152,13 +172,22 @@ def detection_rates(
         Level of the test (default 0.01).
     seed : int, optional
         Seed of the attack-free windows (the attacked ones use seed + 1).
-    test : {"count", "interval"}, optional
-        The test (default the count test).
+    test : {"count", "interval", "support"}, optional
+        The test (default the count test); ``"support"`` is the support check alone, as in
+        :func:`fakeack.detection_probability`.
     alternative : {"less", "greater", "two-sided"}, optional
         The count test's alternative (default "less", as :func:`detect_attack`); the interval test
-        is two-sided (the default for it, and the only value it takes).
+        and the support check are two-sided (the default for them, and the only value they take).
     burn_in : int, optional
         Steps simulated before each window, rounded up to whole windows (default 0).
+    support : bool, optional
+        Whether a window also alarms at the support check: a flag-ACK reaching the sensor fewer
+        than z0 + 1 steps (z0 + 2 at mu = 0) after the previous one, which may lie before the
+        window (default True). It never alarms without attack, nor under blocking alone.
+
+    Returns
+    -------
+    DetectionRates
     """
     from .count import check_alternative
 
@@ -170,18 +199,24 @@ def detection_rates(
     runs = as_int("runs", runs, minimum=2, maximum=1 << 24)
     alpha = as_probability("alpha", alpha)
     seed = as_int("seed", seed, minimum=0, maximum=2**63)
-    test = check_test(test)
+    if test == "support":
+        if not support:
+            raise ValueError("support: test='support' is the support check itself; it cannot be off")
+    else:
+        test = check_test(test)
     if alternative is None:
         alternative = "less" if test == "count" else "two-sided"
     alternative = check_alternative(alternative)
-    if test == "interval" and alternative != "two-sided":
-        raise ValueError("alternative: the interval test is two-sided by construction")
+    if test != "count" and alternative != "two-sided":
+        raise ValueError(f"alternative: the {test} test is two-sided by construction")
     burn_in = as_int("burn_in", burn_in, minimum=0)
     flagged: dict[str, float] = {}
     se: dict[str, float] = {}
     delivered = np.zeros(0)  # the attacked windows' counts, from the loop's last run
     for name, a, sd in (("clean", None, seed), ("attacked", att, seed + 1)):
-        alarms, counts = simulate_windows(lam, design, a, n, runs, sd, test, alpha, alternative, burn_in)
+        alarms, counts = simulate_windows(
+            lam, design, a, n, runs, sd, test, alpha, alternative, burn_in, support=support
+        )
         p = float(np.mean(alarms))
         flagged[name], se[name] = p, math.sqrt(max(p * (1 - p), 0.0) / runs)
         delivered = counts
@@ -204,4 +239,5 @@ def detection_rates(
         test,
         alternative,
         burn_in,
+        bool(support),
     )

@@ -1,6 +1,6 @@
 """The closed-loop game under a Markov channel: what the compiled kernel is given (the design and
 the fall-back pattern under the channel, the count test's bounds from the attack-free flag law of
-the channel) — see :func:`fakeack.simulate_game`."""
+the channel and the support check's shortest attack-free gap) — see :func:`fakeack.simulate_game`."""
 
 from __future__ import annotations
 
@@ -38,6 +38,8 @@ class PlayedGame:
     channel: Channel | None = None
     offline: tuple[int, ...] | None = None
     """The fall-back pattern (first symbol = step 1); None: Theorem 3.1's of ``ratio``."""
+    min_gap: int = 0
+    """The support check's shortest allowed gap between flag-ACKs (0: no check)."""
 
     def channel_args(self) -> dict[str, Any]:
         """The kernel's keyword arguments for the channel and the fall-back pattern."""
@@ -70,6 +72,7 @@ def channel_game(
     design = design_online(channel, r)
     pattern = tuple(int(x) for x in offline_search(system, channel, r).pattern)
     kernel: KernelTest
+    min_gap = 0
     if policy.test == "offline":
         kernel = ("offline", -1, 0, [], [], 0.0, None, 0)
     elif policy.test == "never":
@@ -81,7 +84,10 @@ def channel_game(
         )
     else:
         alpha, fallback = cast(float, policy.alpha), cast(int, policy.fallback)
-        lo, hi = process_alarm_bounds(flag_process(channel, design), n, alpha, policy.alternative)
+        process = flag_process(channel, design)
+        lo, hi = process_alarm_bounds(process, n, alpha, policy.alternative)
+        if policy.support:
+            min_gap = process.min_gap  # 1 where a high-power packet can be lost: no check
         harm = None
         if policy.rule == "harmful":
             if beta_bar is None:
@@ -94,4 +100,4 @@ def channel_game(
             harm = rates_harmful_bound(f_on, f_blk, n, bb)
         kernel = ("count", lo, hi, [], [], 0.0, harm, fallback)
     lam = as_probability("channel", channel.mean_low)  # informational: the kernel uses the channel
-    return PlayedGame(lam, r, design, n, kernel, channel, pattern)
+    return PlayedGame(lam, r, design, n, kernel, channel, pattern, min_gap)

@@ -7,6 +7,8 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 from typing import TypeVar, cast
 
+import numpy as np
+
 from .._internal.validate import as_int, as_probability
 from ..detection.count import check_alternative
 
@@ -27,7 +29,11 @@ class SensorPolicy:
     "interval") at level ``alpha`` to every online window; after an alarm run the offline schedule
     for ``fallback`` windows, then return online. With ``rule="any"`` every alarm triggers the
     fall-back, with ``"harmful"`` only an alarm whose estimated budget
-    (:func:`fakeack.estimate_beta` of the window's count) exceeds β̄. Two special policies:
+    (:func:`fakeack.estimate_beta` of the window's count) exceeds β̄. With ``support=True`` (the
+    default) the window also alarms at the support check: a flag-ACK reaching the sensor sooner
+    after the previous one than any can without attack (:attr:`fakeack.FlagProcess.min_gap`,
+    z0 + 1 on the paper's channel), which costs no false alarm and sees a forger that ignores
+    the gaps. Two special policies:
     ``SensorPolicy("offline")`` (always offline) and ``SensorPolicy("never")`` (online, never
     test).
 
@@ -43,11 +49,16 @@ class SensorPolicy:
         Which alarms trigger the fall-back (default "any").
     alternative : {"two-sided", "less", "greater"}, optional
         The count test's alternative (default two-sided; the interval test is two-sided).
+    support : bool, optional
+        Whether the sensor also runs the support check (tests only; default True). Its alarms
+        follow ``rule`` as the test's do.
 
     Examples
     --------
     >>> str(SensorPolicy("count", 0.01, 2, "harmful"))
     'count test at alpha=0.01, 2 windows offline after a harmful alarm'
+    >>> str(SensorPolicy("count", 0.01, 2, support=False))
+    'count test at alpha=0.01, 2 windows offline after any alarm, without the support check'
     >>> str(SensorPolicy("offline"))
     'always offline'
     """
@@ -57,6 +68,8 @@ class SensorPolicy:
     fallback: int | None = None
     rule: str = "any"
     alternative: str = "two-sided"
+    support: bool = True
+    """The support check (False for the special policies, which test nothing)."""
 
     def __init__(
         self,
@@ -65,15 +78,17 @@ class SensorPolicy:
         fallback: int | None = None,
         rule: str = "any",
         alternative: str = "two-sided",
+        support: bool | None = None,
     ) -> None:
         if test in _SPECIAL:
-            if alpha is not None or fallback is not None:
-                raise ValueError(f"test: the special policy {test!r} takes no alpha or fallback")
+            if alpha is not None or fallback is not None or support is not None:
+                raise ValueError(f"test: the special policy {test!r} takes no alpha, fallback or support")
             object.__setattr__(self, "test", test)
             object.__setattr__(self, "alpha", None)
             object.__setattr__(self, "fallback", None)
             object.__setattr__(self, "rule", "any")
             object.__setattr__(self, "alternative", "two-sided")
+            object.__setattr__(self, "support", False)
             return
         if test not in ("count", "interval"):
             raise ValueError(f"test must be 'count', 'interval', 'offline' or 'never', got {test!r}")
@@ -89,6 +104,11 @@ class SensorPolicy:
         object.__setattr__(self, "fallback", as_int("fallback", fallback, minimum=0))
         object.__setattr__(self, "rule", rule)
         object.__setattr__(self, "alternative", alternative)
+        if support is None:
+            support = True
+        if not isinstance(support, (bool, np.bool_)):
+            raise TypeError(f"support must be True or False, got {support!r}")
+        object.__setattr__(self, "support", bool(support))
 
     @property
     def special(self) -> bool:
@@ -101,8 +121,11 @@ class SensorPolicy:
         side = "" if self.test == "interval" or self.alternative == "two-sided" else f" ({self.alternative})"
         windows = "window" if self.fallback == 1 else "windows"
         after = "any alarm" if self.rule == "any" else "a harmful alarm"
+        # The default (with the check) keeps the form it had before the check existed.
+        without = "" if self.support else ", without the support check"
         return (
             f"{self.test} test{side} at alpha={self.alpha:g}, {self.fallback} {windows} offline after {after}"
+            f"{without}"
         )
 
 

@@ -17,6 +17,7 @@ from ..attacks.kinds import AttackLike, as_attack, core_attack
 from ..detection.count import alarm_bounds, harmful_bound
 from ..detection.interval_test import cached_interval_test
 from ..detection.probability import KernelTest
+from ..detection.rates import paper_min_gap
 from ..model.channels import Channel, ChannelLike, channel_argument, is_paper_channel
 from ..model.system import LinearSystem, compiled
 from ._channel import PlayedGame, channel_game
@@ -97,10 +98,13 @@ def simulate_game(
     estimator, event detector, attacker) from the paper's initial condition, cut into windows of
     ``n_steps`` from the first step; the sensor tests every online window with its policy's test
     (the same statistic and critical value as :func:`fakeack.detect_attack` /
-    :func:`fakeack.detect_intervals`), and a triggering alarm sends it offline for ``fallback``
-    windows. Costs, rates and alarms are measured after the burn-in. Nothing here uses the payoff
-    formula, so it checks :func:`game_payoff` including what the formula neglects (transients at
-    switches, dependence between windows).
+    :func:`fakeack.detect_intervals`) and, if the policy's ``support`` is on, the support check (an
+    alarm at a gap between flag-ACKs shorter than :attr:`fakeack.FlagProcess.min_gap`, z0 + 1 on
+    the paper's channel; the gap across the window's start counts, the first after an offline
+    stretch does not), and a triggering alarm sends it offline for ``fallback`` windows. Costs,
+    rates and alarms are measured after the burn-in. Nothing here uses the payoff formula, so it
+    checks :func:`game_payoff` including what the formula neglects (transients at switches,
+    dependence between windows).
 
     Parameters
     ----------
@@ -171,7 +175,12 @@ def simulate_game(
     if is_paper_channel(ch):
         setting = _Setting.make(system, as_probability(name, float(ch.low[0])), ratio_, n_steps, beta_bar)
         kernel = PlayedGame(
-            setting.lam, setting.ratio, setting.design, setting.n, _kernel_policy(setting, policy)
+            setting.lam,
+            setting.ratio,
+            setting.design,
+            setting.n,
+            _kernel_policy(setting, policy),
+            min_gap=paper_min_gap(setting.design) if policy.support else 0,
         )
     else:
         kernel = channel_game(system, ch, ratio_, policy, n_steps, beta_bar)
@@ -194,6 +203,7 @@ def simulate_game(
             seed,
             bar,
             **kernel.channel_args(),
+            min_gap=kernel.min_gap,
         )
     finally:
         bar.close()

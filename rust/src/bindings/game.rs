@@ -16,7 +16,8 @@ use crate::montecarlo::game::{Detector, GameConfig, MarkovChannel, Policy};
 use crate::schedule::{offline_schedule, Ratio};
 
 /// The policy named `kind`: "online" (never tested), "offline", "count" (alarm iff N <= lo or
-/// N >= hi) or "interval" (alarm iff Pearson's X² over `edges`/`expected` exceeds `critical`).
+/// N >= hi) or "interval" (alarm iff Pearson's X² over `edges`/`expected` exceeds `critical`);
+/// a test with the support check when `min_gap` > 1 (the two others refuse one).
 #[allow(clippy::too_many_arguments)]
 fn policy_of(
     kind: &str,
@@ -27,7 +28,18 @@ fn policy_of(
     critical: f64,
     harmful_at_most: Option<i64>,
     fallback: u64,
+    min_gap: i64,
 ) -> PyResult<Policy> {
+    // A negative value as a ValueError naming the argument, not pyo3's OverflowError.
+    let min_gap = u64::try_from(min_gap)
+        .map_err(|_| Error::invalid("min_gap", format!("must be non-negative, got {min_gap}")))?;
+    if min_gap > 1 && matches!(kind, "online" | "offline") {
+        return Err(Error::invalid(
+            "min_gap",
+            format!("the policy {kind:?} tests nothing, so it takes no support check"),
+        )
+        .into());
+    }
     let detector = match kind {
         "online" => return Ok(Policy::Online),
         "offline" => return Ok(Policy::Offline),
@@ -47,6 +59,7 @@ fn policy_of(
         detector,
         harmful_at_most,
         fallback,
+        min_gap,
     })
 }
 
@@ -107,8 +120,10 @@ fn rename(e: Error, pattern_given: bool) -> Error {
 /// `channel_p`, `channel_low`, `channel_high`: a Markov channel (all three, or none for the
 /// i.i.d. channel of `lam`; `lam` is then ignored). `offline_pattern`: the offline schedule's
 /// period (first symbol = the first step of an offline stretch) instead of the pattern of p/q.
+/// `min_gap`: the support check of a testing policy (0 or 1: none), an alarm at any gap between
+/// flag-ACKs that reach the sensor shorter than it.
 #[pyfunction]
-#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None))]
+#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None, min_gap=0))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate_game<'py>(
     py: Python<'py>,
@@ -137,6 +152,7 @@ pub(crate) fn simulate_game<'py>(
     channel_low: Option<Vec<f64>>,
     channel_high: Option<Vec<f64>>,
     offline_pattern: Option<Vec<bool>>,
+    min_gap: i64,
 ) -> PyResult<Bound<'py, PyDict>> {
     let ratio = Ratio::new(p, q)?;
     let given = offline_pattern.is_some();
@@ -159,6 +175,7 @@ pub(crate) fn simulate_game<'py>(
             critical,
             harmful_at_most,
             fallback,
+            min_gap,
         )?,
         window,
         horizon,

@@ -9,7 +9,14 @@
 //! window's end it applies its test, and an alarm that triggers the fall-back (any alarm, or only
 //! one whose count is low enough, the "harmful" rule) makes it run the offline schedule, from
 //! the start of its period, for the next `fallback` windows, ignoring flag-ACKs, then return
-//! online. Windows are not tested while offline. The remote detector and the attacker do not
+//! online. Windows are not tested while offline. With the support check (`min_gap` > 1) a
+//! window also alarms when some flag-ACK that reached the sensor in it came fewer than `min_gap`
+//! steps after the previous one: the gap that straddles the window's start counts, the run's
+//! start counting as a flag-ACK at step 0 (the exact engine's k_last = 0), but not the first gap
+//! after an offline stretch (offline, the sensor's power does not follow the flags, so a flag may
+//! come z0 steps after the previous one without attack). Forged flag-ACKs count like genuine
+//! ones, and a support alarm triggers the fall-back under the harmful rule as any other alarm
+//! does: only with a count N <= `harmful_at_most`. The remote detector and the attacker do not
 //! know which schedule the sensor runs: the detector keeps its memory of ACKs and sends flags,
 //! the attacker keeps counting, blocking and forging them, in every window.
 //!
@@ -20,7 +27,10 @@
 //! and Tr P_k = Tr h^τ(P̄), the detector's zero count z (reset by an arrival; a flag sent last step
 //! had reset the memory, so a loss makes z = 1), its flag (at z = z0 with probability μ, always
 //! at z0 + 1), the attacker's block (its counter's mask entry, or probability β) and forgery
-//! (probability γ on a step without a genuine flag). These are the rules of
+//! (probability γ on a step without a genuine flag), the delivery (a genuine flag not blocked, or
+//! a forged one) and its gap since the previous delivery, which an online sensor sorts into the
+//! interval test's bins and, if online since that delivery, compares with `min_gap` for the
+//! support check. These are the rules of
 //! [`crate::chain::general::capped_attack_chain`], which the tests compare with.
 //!
 //! A Markov channel ([`MarkovChannel`], the package's convention): K states, P row-stochastic
@@ -35,8 +45,8 @@
 //! distributed, not equal, samples on the two):
 //!
 //! * The bit-sliced kernel (`sliced.rs`) takes every plan with a memory of at most 31 steps, an
-//!   interval test of at most 64 bins whose last edge is at most 64 steps, and a blocking mask
-//!   of at most 8 runs of ones: the paper's example and every game `fakeack` builds for it. Blocks of 256 runs are the bit lanes of four u64 words,
+//!   interval test of at most 64 bins whose last edge is at most 64 steps, a support check of
+//!   `min_gap` at most 64, and a blocking mask of at most 8 runs of ones: the paper's example and every game `fakeack` builds for it. Blocks of 256 runs are the bit lanes of four u64 words,
 //!   each per-run quantity a thermometer or binary bit-planes, as in the plain Monte Carlo's
 //!   bit-sliced kernel; block b draws from SplitMix64 sub-stream (seed, b), one xoshiro256++
 //!   generator per word, with bit-serial Bernoulli draws exact to 2^-64.
@@ -127,6 +137,10 @@ pub enum Policy {
         harmful_at_most: Option<i64>,
         /// Offline windows after a triggering alarm.
         fallback: u64,
+        /// The support check: the window also alarms when a flag-ACK reaches the sensor fewer
+        /// than `min_gap` steps after the previous one (the shortest gap possible without
+        /// attack, z0 + 1 on the paper's channel); 0 or 1: no check.
+        min_gap: u64,
     },
 }
 
@@ -255,6 +269,15 @@ impl GameConfig {
             }
             if critical.is_nan() {
                 return Err(Error::invalid("critical", "must not be NaN"));
+            }
+        }
+        if let Policy::Test { min_gap, .. } = &self.policy {
+            // No gap is longer than the run.
+            if *min_gap > MAX_STEPS {
+                return Err(Error::invalid(
+                    "min_gap",
+                    format!("must be at most {MAX_STEPS}, got {min_gap}"),
+                ));
             }
         }
         Ok(())

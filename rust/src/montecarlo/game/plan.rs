@@ -1,5 +1,6 @@
 //! The validated, precomputed form of a [`GameConfig`]: exact Bernoulli draws from 16-bit
-//! slices, the attacker's blocking rule, the trace table and the interval test's bins.
+//! slices, the attacker's blocking rule, the trace table, the interval test's bins and the
+//! support check's gap.
 
 use super::channel::ChannelPlan;
 use super::*;
@@ -80,6 +81,8 @@ pub(super) struct Plan<'a> {
     /// Bin of each gap (gaps beyond the table read its last entry); empty without bins.
     pub(super) bin_of: Vec<u16>,
     pub(super) bins: usize,
+    /// The support check's shortest allowed gap, > 1; 0 without the check.
+    pub(super) min_gap: u64,
 }
 
 impl<'a> Plan<'a> {
@@ -111,6 +114,10 @@ impl<'a> Plan<'a> {
             }
             _ => (Vec::new(), 0),
         };
+        let min_gap = match cfg.policy {
+            Policy::Test { min_gap, .. } if min_gap > 1 => min_gap,
+            _ => 0,
+        };
         Ok(Plan {
             cfg,
             traces,
@@ -123,6 +130,7 @@ impl<'a> Plan<'a> {
             z0: cfg.design.z0,
             bin_of,
             bins,
+            min_gap,
         })
     }
 }

@@ -7,6 +7,8 @@ use crate::schedule::{offline_schedule, Ratio};
 
 /// The game on a Markov channel.
 mod channel;
+/// The support check.
+mod support;
 
 fn paper() -> LinearSystem {
     LinearSystem::scalar(1.2, 0.7, 0.8, 0.8).unwrap()
@@ -131,6 +133,7 @@ fn a_test_that_never_fires_is_the_online_schedule() {
         },
         harmful_at_most: None,
         fallback: 3,
+        min_gap: 0,
     };
     let attack = Some(Attack::periodic(1, 5).unwrap());
     let a = both(&sys, &config(attack.clone(), never));
@@ -152,6 +155,7 @@ fn a_test_that_always_fires_alternates() {
         },
         harmful_at_most: None,
         fallback: 3,
+        min_gap: 0,
     };
     for res in both(&sys, &config(None, always)) {
         assert!(res.tested.iter().all(|&t| t == 5));
@@ -166,6 +170,7 @@ fn a_test_that_always_fires_alternates() {
         },
         harmful_at_most: Some(-1),
         fallback: 3,
+        min_gap: 0,
     };
     for res in both(&sys, &config(None, harmless)) {
         assert!(res.alarms.iter().all(|&a| a == 20) && res.fallbacks.iter().all(|&f| f == 0));
@@ -185,6 +190,7 @@ fn interval_statistic_of_a_window() {
         },
         harmful_at_most: None,
         fallback: 0,
+        min_gap: 0,
     };
     let mut cfg = config(None, policy(1e9));
     cfg.runs = 64;
@@ -248,6 +254,7 @@ fn bad_configs_name_the_field() {
             },
             harmful_at_most: None,
             fallback: 1,
+            min_gap: 0,
         },
     );
     assert!(sys
@@ -268,6 +275,7 @@ fn interval_policy(fallback: u64) -> Policy {
         },
         harmful_at_most: None,
         fallback,
+        min_gap: 0,
     }
 }
 
@@ -288,11 +296,18 @@ fn game_speed() {
         },
         harmful_at_most: None,
         fallback: 2,
+        min_gap: 0,
     };
     let interval = interval_policy(2);
+    // The count test with the support check at z0 + 1.
+    let mut support = count.clone();
+    if let Policy::Test { min_gap, .. } = &mut support {
+        *min_gap = 3;
+    }
     for (policy_name, policy) in [
         ("online", Policy::Online),
         ("count", count),
+        ("count + support", support),
         ("interval", interval),
     ] {
         for (name, attack) in [
@@ -356,6 +371,7 @@ fn the_two_kernels_agree_on_testing_policies() {
                 },
                 harmful_at_most: None,
                 fallback: 2,
+                min_gap: 0,
             },
         ),
         (
@@ -367,6 +383,7 @@ fn the_two_kernels_agree_on_testing_policies() {
                 },
                 harmful_at_most: Some(random_count as i64 - 5),
                 fallback: 3,
+                min_gap: 0,
             },
         ),
         (

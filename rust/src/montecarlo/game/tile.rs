@@ -15,6 +15,11 @@ pub(super) struct Tile {
     pub(super) pending: [bool; LANES],
     pub(super) flagged: [bool; LANES],
     pub(super) gap: [usize; LANES],
+    /// Online since the last flag-ACK that reached the sensor (the run's start counts as one):
+    /// the next gap is checked by the support check.
+    pub(super) armed: [bool; LANES],
+    /// The current window had a gap shorter than the support check's `min_gap`.
+    pub(super) short: [bool; LANES],
     pub(super) online: [bool; LANES],
     pub(super) left: [u64; LANES],
     pub(super) pos: [usize; LANES],
@@ -53,6 +58,8 @@ impl Tile {
             pending: [true; LANES],
             flagged: [false; LANES],
             gap: [0; LANES],
+            armed: [!offline; LANES],
+            short: [false; LANES],
             online: [!offline; LANES],
             left: [0; LANES],
             pos: [0; LANES],
@@ -144,6 +151,9 @@ impl Tile {
         let bin_of = &plan.bin_of[..];
         let gap_last = bin_of.len().saturating_sub(1);
         let z0 = plan.z0;
+        // 0 without the support check, so no gap is short.
+        let min_gap = plan.min_gap;
+        let support = min_gap > 1;
         let (first_r, period_t, mask): (u64, u64, &[bool]) = match &plan.block {
             Block::FirstR { r, t } => (*r, *t, &[]),
             Block::Mask(m) => (0, m.len() as u64, &m[..]),
@@ -215,6 +225,11 @@ impl Tile {
                 if BINS {
                     self.bins[bin_of[gap.min(gap_last)] as usize][l] += u32::from(counted);
                 }
+                if support {
+                    // Offline the lane is disarmed, so `counted` alone re-arms it.
+                    self.short[l] |= counted & self.armed[l] & ((gap as u64) < min_gap);
+                    self.armed[l] |= counted;
+                }
                 self.gap[l] = gap & black_box(usize::from(!delivered).wrapping_neg());
                 if let Some(ch) = channel {
                     // c_k -> c_{k+1}, from a fresh output of the lane's stream.
@@ -236,6 +251,7 @@ impl Tile {
                 detector,
                 harmful_at_most,
                 fallback,
+                ..
             } = &plan.cfg.policy
             {
                 if self.online[l] {
@@ -256,12 +272,16 @@ impl Tile {
                             x2 > *critical
                         }
                     };
+                    // The support check.
+                    let alarm = alarm || self.short[l];
                     self.tested[l] += c;
                     self.alarms[l] += c * u64::from(alarm);
                     if alarm && harmful_at_most.is_none_or(|b| n <= b) {
                         self.fallbacks[l] += c;
                         if *fallback > 0 {
                             self.online[l] = false;
+                            // The first gap back online is not checked.
+                            self.armed[l] = false;
                             self.left[l] = *fallback;
                             self.pos[l] = 0;
                         }
@@ -274,6 +294,7 @@ impl Tile {
                 }
             }
             self.count[l] = 0;
+            self.short[l] = false;
             for b in &mut self.bins {
                 b[l] = 0;
             }

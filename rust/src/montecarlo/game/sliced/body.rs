@@ -79,6 +79,11 @@ struct State<const D: usize> {
     beta: BetaPool,
     pending: W,
     gap: Vec<W>,
+    /// Online since their last flag-ACK (the run's start counts as one): the lanes whose next
+    /// gap the support check reads.
+    armed: W,
+    /// A gap shorter than `min_gap` in the current window.
+    short: W,
     online: W,
     classes: Vec<Class>,
     /// The lanes offline, by the index of the window at whose end they return online, in
@@ -132,7 +137,9 @@ pub(super) fn block_body<const D: usize, S: StreamStepper>(
         beta: BetaPool::EMPTY,
         // The paper's initial condition: high power at k = 1, as after a flag-ACK.
         pending: ONES,
-        gap: vec![ZERO; s.edges.last().map_or(0, |&e| e + 1)],
+        gap: vec![ZERO; s.gap_levels()],
+        armed: if offline { ZERO } else { ONES },
+        short: ZERO,
         online: if offline { ZERO } else { ONES },
         classes: if offline {
             vec![Class {
@@ -283,13 +290,20 @@ impl<const D: usize> State<D> {
         self.delivered_batch[f] = delivered;
         let counted = and(delivered, self.online);
         self.count_batch[f] = counted;
-        if !s.edges.is_empty() {
+        if !self.gap.is_empty() {
             // The gap since the last flag-ACK that reached the sensor, one more each step.
             // A gap of 1 at the first step either way: the gap starts at 0, as after a flag-ACK.
             gap_step(&mut self.gap, last_delivered);
             for (i, &e) in s.edges.iter().enumerate() {
                 let above = s.edges.get(i + 1).map_or(ZERO, |&next| self.gap[next]);
                 self.bin_batch[i][f] = and(counted, andnot(self.gap[e], above));
+            }
+            if s.min_gap > 1 {
+                // Short: the gap has not reached `min_gap`. Offline lanes are disarmed, so
+                // `counted` alone re-arms them.
+                let checked = and(counted, self.armed);
+                self.short = or(self.short, andnot(checked, self.gap[s.min_gap - 1]));
+                self.armed = or(self.armed, counted);
             }
         }
         self.fill += 1;
@@ -332,6 +346,7 @@ impl<const D: usize> State<D> {
             detector,
             harmful_at_most,
             fallback,
+            ..
         } = &plan.cfg.policy
         {
             let tested = self.online;
@@ -355,7 +370,7 @@ impl<const D: usize> State<D> {
                     alarm
                 }
             };
-            let alarm = and(alarm, tested);
+            let alarm = and(or(alarm, self.short), tested);
             let trigger = match harmful_at_most {
                 None => alarm,
                 Some(b) => and(alarm, at_most(&n, *b)),
@@ -378,6 +393,8 @@ impl<const D: usize> State<D> {
                         .push_back((index.saturating_add(*fallback), trigger));
                 }
                 self.online = or(andnot(self.online, trigger), back);
+                // The first gap back online is not checked.
+                self.armed = andnot(self.armed, trigger);
                 self.classes.retain_mut(|c| {
                     c.lanes = andnot(c.lanes, back);
                     c.lanes != ZERO
@@ -395,6 +412,7 @@ impl<const D: usize> State<D> {
             }
         }
         self.count = LaneCounter::NEW;
+        self.short = ZERO;
         for b in &mut self.bins {
             *b = LaneCounter::NEW;
         }

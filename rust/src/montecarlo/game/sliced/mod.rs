@@ -12,8 +12,11 @@
 //!   offline stretch began modulo the pattern's period, so one class shares one power per step
 //!   (a stretch starts at a window's end, so there are at most period / gcd(period, window));
 //!   the lanes that went offline at each of the last `fallback` window ends, to bring them back;
-//! * the gap since the last flag-ACK that reached the sensor as a thermometer up to the interval
-//!   test's last edge, which sorts each counted flag-ACK into its bin.
+//! * the gap since the last flag-ACK that reached the sensor as a thermometer up to the larger of
+//!   the interval test's last edge and the support check's `min_gap` (none without either),
+//!   which sorts each counted flag-ACK into its bin and finds the short gaps; for the support
+//!   check, the lanes online since their last flag-ACK (whose next gap it checks) and those with
+//!   a short gap in the current window.
 //!
 //! Per-lane counts (steps with τ ≥ j, high-power steps, flag-ACKs delivered, and the window's
 //! count and bins) go through carry-save counters ([`LaneCounter`]), whose binary planes the
@@ -48,7 +51,8 @@ use body::block_body;
 
 /// Largest zero-count memory (z0 + 1) and thermometer the kernel takes.
 const MAX_DEPTH: usize = 32;
-/// Most bins, and largest last edge, of an interval test the kernel takes.
+/// Most bins, and largest last edge, of an interval test the kernel takes; largest `min_gap` of
+/// its support check.
 const MAX_GAP: usize = 64;
 /// Most runs of ones in a blocking mask.
 const MAX_MASK_RUNS: usize = 8;
@@ -111,13 +115,22 @@ pub(super) struct Sliced {
     tr: Vec<f64>,
     /// The interval test's bin edges minus one (thermometer levels); empty without it.
     edges: Vec<usize>,
+    /// The support check's shortest allowed gap, > 1; 0 without the check.
+    min_gap: usize,
+}
+
+impl Sliced {
+    /// Levels of the gap thermometer: up to the last bin's edge and to `min_gap`.
+    fn gap_levels(&self) -> usize {
+        self.edges.last().map_or(0, |&e| e + 1).max(self.min_gap)
+    }
 }
 
 impl Sliced {
     /// The kernel's form of `plan`, or `None` when the plan does not fit it (a Markov channel, a
     /// memory deeper than
     /// 32 steps, an interval test with more than 64 bins or a last edge beyond 64 steps, a
-    /// blocking mask with more than 8 runs of ones).
+    /// support check with `min_gap` beyond 64, a blocking mask with more than 8 runs of ones).
     pub(super) fn of(plan: &Plan<'_>) -> Option<Self> {
         let cfg = plan.cfg;
         // A Markov channel runs on the lane kernel.
@@ -171,6 +184,10 @@ impl Sliced {
             }
             _ => Vec::new(),
         };
+        // The check of an i.i.d. channel's attack-free minimum, z0 + 1 or z0 + 2, always fits.
+        let min_gap = usize::try_from(plan.min_gap)
+            .ok()
+            .filter(|&g| g <= MAX_GAP)?;
         let gamma = cfg.attack.as_ref().map_or(0.0, Attack::forging);
         Some(Sliced {
             lam: Draw::new(cfg.lam),
@@ -183,6 +200,7 @@ impl Sliced {
                 .map(|j| plan.traces.get(j).copied().unwrap_or(0.0))
                 .collect(),
             edges,
+            min_gap,
         })
     }
 }

@@ -62,6 +62,10 @@ struct Run {
     /// A flag-ACK reached the sensor on the last step.
     pending: bool,
     online: bool,
+    /// Online since the last flag-ACK that reached the sensor: its next gap is checked.
+    armed: bool,
+    /// The window had a gap shorter than `min_gap`.
+    short: bool,
     /// Offline windows left.
     left: u64,
     /// Position in the offline pattern.
@@ -96,9 +100,14 @@ fn plain(plan: &Plan<'_>, depth: usize, block: u64) -> (SlicedOut, u64) {
         } => edges,
         _ => &[],
     };
+    let min_gap = match cfg.policy {
+        Policy::Test { min_gap, .. } => min_gap as usize,
+        _ => 0,
+    };
     let start = Run {
         pending: true,
         online: !matches!(cfg.policy, Policy::Offline),
+        armed: !matches!(cfg.policy, Policy::Offline),
         bins: vec![0; edges.len()],
         hist: vec![0; depth],
         ..Run::default()
@@ -174,6 +183,8 @@ fn plain(plan: &Plan<'_>, depth: usize, block: u64) -> (SlicedOut, u64) {
                 if let Some(b) = edges.iter().rposition(|&e| e as usize <= gap) {
                     r.bins[b] += 1;
                 }
+                r.short |= r.armed && gap < min_gap;
+                r.armed = true;
             }
             if measured {
                 out.high[l] += u64::from(high[l]);
@@ -206,6 +217,7 @@ fn end_window(cfg: &GameConfig, r: &mut Run, counted: u64, out: &mut SlicedOut, 
         detector,
         harmful_at_most,
         fallback,
+        ..
     } = &cfg.policy
     {
         if r.online {
@@ -223,12 +235,14 @@ fn end_window(cfg: &GameConfig, r: &mut Run, counted: u64, out: &mut SlicedOut, 
                     x2 > *critical
                 }
             };
+            let alarm = alarm || r.short;
             out.tested[l] += counted;
             out.alarms[l] += counted * u64::from(alarm);
             if alarm && harmful_at_most.is_none_or(|b| n <= b) {
                 out.fallbacks[l] += counted;
                 if *fallback > 0 {
                     r.online = false;
+                    r.armed = false;
                     r.left = *fallback;
                     r.pos = 0;
                 }
@@ -241,6 +255,7 @@ fn end_window(cfg: &GameConfig, r: &mut Run, counted: u64, out: &mut SlicedOut, 
         }
     }
     r.count = 0;
+    r.short = false;
     r.bins.iter_mut().for_each(|b| *b = 0);
 }
 
@@ -258,6 +273,7 @@ fn count(lo: i64, hi: i64, harmful_at_most: Option<i64>, fallback: u64) -> Polic
         detector: Detector::Count { lo, hi },
         harmful_at_most,
         fallback,
+        min_gap: 0,
     }
 }
 
@@ -271,6 +287,7 @@ fn interval(last: u64, critical: f64, harmful_at_most: Option<i64>, fallback: u6
         },
         harmful_at_most,
         fallback,
+        min_gap: 0,
     }
 }
 
@@ -324,6 +341,14 @@ impl Case {
         self.deep = true;
         self
     }
+
+    /// The policy's support check at `gap`.
+    fn support(mut self, gap: u64) -> Self {
+        if let Policy::Test { min_gap, .. } = &mut self.cfg.policy {
+            *min_gap = gap;
+        }
+        self
+    }
 }
 
 fn cases() -> Vec<Case> {
@@ -366,6 +391,25 @@ fn cases() -> Vec<Case> {
             .attack(random(0.9))
             .deep(),
         game("sure β and γ", 0.5, (3, 1.0), (100, 300, 5)).attack(inject(1.0, Some(random(1.0)))),
+        // The support check alone (a count test that never alarms), with the straddling gaps
+        // and the first gap back online; beside an interval test whose last edge is below
+        // `min_gap`, and one whose last edge is above it; a μ < 1 memory; the harmful rule.
+        game("support, f 2", 0.5, (2, 1.0), (30, 900, 45))
+            .attack(inject(0.01, None))
+            .policy(count(-1, 1 << 40, None, 2))
+            .support(3),
+        game("support, interval, f 1", 0.5, (4, 1.0), (25, 800, 10))
+            .attack(inject(0.01, Some(random(0.3))))
+            .policy(interval(4, 1e9, None, 1))
+            .support(5),
+        game("support, interval above", 0.5, (2, 0.4), (20, 600, 0))
+            .attack(inject(0.01, None))
+            .policy(interval(6, 8.0, None, 1))
+            .support(3),
+        game("support, harmful, f 0", 0.4, (2, 1.0), (30, 600, 0))
+            .attack(inject(0.02, None))
+            .policy(count(-1, 1 << 40, Some(3), 0))
+            .support(3),
     ]
 }
 
@@ -449,6 +493,7 @@ fn sliced_kernel_refuses_plans_beyond_its_limits() {
         },
         harmful_at_most: None,
         fallback: 1,
+        min_gap: 0,
     };
     assert!(fits(on(2).policy(bins)));
 }

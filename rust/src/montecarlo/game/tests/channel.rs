@@ -43,6 +43,7 @@ fn pinned_configs() -> Vec<GameConfig> {
             },
             harmful_at_most: None,
             fallback: 2,
+            min_gap: 0,
         }
     };
     let (periodic, random) = (
@@ -57,6 +58,7 @@ fn pinned_configs() -> Vec<GameConfig> {
         },
         harmful_at_most: Some(70),
         fallback: 1,
+        min_gap: 0,
     };
     let cases = [
         (None, Policy::Online, 2, 1.0),
@@ -151,7 +153,7 @@ fn the_iid_channel_is_pinned_bit_for_bit() {
 }
 
 /// A Gilbert-Elliott channel (good: λ = 0.8, bad: λ = 0.15; high power always arrives).
-fn gilbert_elliott() -> MarkovChannel {
+pub(super) fn gilbert_elliott() -> MarkovChannel {
     MarkovChannel {
         p: vec![vec![0.9, 0.1], vec![0.25, 0.75]],
         low: vec![0.8, 0.15],
@@ -185,6 +187,7 @@ fn never() -> Policy {
         },
         harmful_at_most: None,
         fallback: 3,
+        min_gap: 0,
     }
 }
 

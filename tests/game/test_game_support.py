@@ -1,0 +1,170 @@
+"""The support check in the closed loop (SensorPolicy(..., support=True), the default): an alarm at
+any gap between flag-ACKs reaching the sensor shorter than the attack-free minimum. Invisible
+without forging (blocking never shortens a gap), its alarm rate against the exact short-gap
+probability of the flag process on the paper's channel and on a Gilbert-Elliott channel, and the
+compiled kernel's argument checked."""
+
+import math
+
+import numpy as np
+import pytest
+
+import fakeack as fa
+from conftest import PAPER
+from fakeack import _fakeack
+from fakeack.detection.rates import paper_min_gap
+
+LAM, RATIO = 0.5, "1/7"
+GE = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
+
+
+@pytest.fixture(scope="module")
+def system():
+    return fa.LinearSystem(**PAPER)
+
+
+def test_the_policy_field():
+    p = fa.SensorPolicy("count", 0.01, 2)
+    assert p.support and str(p) == "count test at alpha=0.01, 2 windows offline after any alarm"
+    q = fa.SensorPolicy("count", 0.01, 2, support=False)
+    assert not q.support and p != q
+    assert str(q) == "count test at alpha=0.01, 2 windows offline after any alarm, without the support check"
+    assert not fa.SensorPolicy("never").support and not fa.SensorPolicy("offline").support
+    with pytest.raises(ValueError, match="takes no alpha, fallback or support"):
+        fa.SensorPolicy("never", support=True)
+    with pytest.raises(TypeError, match="support must be True or False"):
+        fa.SensorPolicy("count", 0.01, 2, support="no")
+
+
+@pytest.mark.parametrize(("z0", "mu"), [(1, 1.0), (2, 1.0), (3, 0.5), (2, 0.0), (4, 0.3)])
+def test_the_paper_channels_minimum_gap_in_closed_form(z0, mu):
+    design = fa.OnlineDesign(z0, mu)
+    assert paper_min_gap(design) == fa.flag_process(0.3, design).min_gap
+
+
+@pytest.mark.parametrize(
+    "attack",
+    [
+        None,
+        fa.PeriodicBlocking(1, 5),
+        fa.PeriodicBlocking(3, 4),
+        fa.MaskBlocking([1, 0, 1, 1, 0]),
+        fa.RandomBlocking(0.3),
+    ],
+    ids=str,
+)
+@pytest.mark.parametrize("test", ["count", "interval"])
+def test_without_short_gaps_the_check_changes_nothing(system, attack, test):
+    """Blocking only removes flag-ACKs, and a gap from a delivered one to the next genuine flag is
+    at least z0 + 1 (the delivery makes the next packet arrive and restarts the memory): no gap
+    becomes shorter, so the runs are the same bit for bit, fall-backs included."""
+    on, off = fa.SensorPolicy(test, 0.05, 2), fa.SensorPolicy(test, 0.05, 2, support=False)
+    a = fa.simulate_game(system, LAM, RATIO, on, attack, 20_000, 16, seed=5, burn_in=2000)
+    b = fa.simulate_game(system, LAM, RATIO, off, attack, 20_000, 16, seed=5, burn_in=2000)
+    assert _same(a, b) and a.fallback_rate > 0  # offline stretches, and returns from them
+    assert fa.detection_probability(LAM, 2, attack, 1000, 0.01, test="support") == 0.0
+
+
+def test_without_short_gaps_the_check_changes_nothing_on_a_markov_channel(system):
+    pol = fa.SensorPolicy("count", 0.05, 1)
+    for attack in (None, fa.RandomBlocking(0.2)):
+        a = fa.simulate_game(system, GE, RATIO, pol, attack, 20_000, 16, seed=6)
+        b = fa.simulate_game(
+            system, GE, RATIO, fa.SensorPolicy("count", 0.05, 1, support=False), attack, 20_000, 16, seed=6
+        )
+        assert _same(a, b)
+
+
+def _same(a, b):
+    """The two simulations are the same, bit for bit."""
+    fields = ("j", "high_power", "online", "alarm_rate", "fallback_rate")
+    same = all(getattr(a, f) == getattr(b, f) for f in fields)
+    return same and np.array_equal(a.delivered_per_run, b.delivered_per_run)
+
+
+@pytest.mark.parametrize(("gamma", "n"), [(0.0005, 1000), (0.002, 200)])
+@pytest.mark.parametrize("channel", [LAM, GE], ids=["paper", "gilbert-elliott"])
+def test_the_closed_loops_support_alarms_are_the_short_gap_probability(system, channel, gamma, n):
+    """A count test at a level so small it never alarms, no fall-back: the alarms are the support
+    check's, in stationary windows after a burn-in."""
+    pol = fa.SensorPolicy("count", 1e-12, 0)
+    attack = fa.FlagInjection(gamma)
+    g = fa.simulate_game(system, channel, RATIO, pol, attack, 20 * n, 512, seed=9, n_steps=n, burn_in=3 * n)
+    design = fa.design_online(channel, RATIO)
+    process = fa.flag_process(channel, design, attack)
+    gap = fa.flag_process(channel, design).min_gap
+    assert gap == design.z0 + 1  # high-power packets always arrive on both
+    p = process.short_gap_probability(n, gap)
+    assert 0.05 < p < 0.95
+    assert abs(g.alarm_rate - p) < 4 * g.alarm_stderr, (g.alarm_rate, g.alarm_stderr, p)
+    assert g.fallback_rate == g.alarm_rate  # rule "any", fall-back of 0 windows
+
+
+def test_support_alarms_trigger_the_fall_back_as_any_alarm(system):
+    """Against a forger of every quiet step every window alarms: with 2 offline windows a third of
+    the windows are online. Under the harmful rule none triggers (the count is far above what an
+    attack-free window has, so the estimated budget is negative)."""
+    attack = fa.FlagInjection(0.5)
+    n = 100
+    g = fa.simulate_game(
+        system, LAM, RATIO, fa.SensorPolicy("count", 1e-12, 2), attack, 30 * n, 8, seed=1, n_steps=n
+    )
+    assert g.alarm_rate == 1.0 and g.online == pytest.approx(1 / 3, abs=1e-12)
+    h = fa.simulate_game(
+        system,
+        LAM,
+        RATIO,
+        fa.SensorPolicy("count", 1e-12, 2, "harmful"),
+        attack,
+        30 * n,
+        8,
+        seed=1,
+        n_steps=n,
+    )
+    assert h.alarm_rate == 1.0 and h.fallback_rate == 0.0 and h.online == 1.0
+
+
+def _kernel(min_gap, kind="count", **kw):
+    """Windows of 10 steps, one offline window after any alarm, and a flag-ACK on every step (a
+    forgery where the detector sends none)."""
+    args = dict(lo=-1, hi=10**6, window=10, horizon=100, runs=4)
+    args.update(kw)
+    return _fakeack.simulate_game(
+        fa.LinearSystem(**PAPER)._core,
+        LAM,
+        1,
+        7,
+        2,
+        1.0,
+        _fakeack.Attack.injection(1.0, None),
+        kind,
+        args["lo"],
+        args["hi"],
+        [],
+        [],
+        0.0,
+        None,
+        1,
+        args["window"],
+        args["horizon"],
+        0,
+        args["runs"],
+        1,
+        lambda done: None,
+        min_gap=min_gap,
+    )
+
+
+def test_the_kernels_argument():
+    assert _kernel(0)["alarms"].sum() == 0
+    # Every gap is short of 3: every online window alarms (its first gap after an offline window
+    # is not checked, the nine others are), so windows alternate online and offline.
+    out = _kernel(3)
+    assert np.array_equal(out["alarms"], out["tested"]) and out["tested"].sum() == 4 * 5
+    for bad, match in [(-1, "min_gap: must be non-negative"), (2**42 + 1, "min_gap: must be at most")]:
+        with pytest.raises(ValueError, match=match):
+            _kernel(bad)
+    with pytest.raises(ValueError, match='min_gap: the policy "online" tests nothing'):
+        _kernel(3, kind="online")
+    assert _kernel(1, kind="offline")["tested"].sum() == 0  # 1 is no check
+    assert math.isfinite(_kernel(10**6)["cost"].mean())
