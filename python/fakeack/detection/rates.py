@@ -120,6 +120,7 @@ class DetectionRates:
     test: str = "count"
     alternative: str = "less"
     burn_in: int = 0
+    """Steps simulated before each window (by default the automaton's mixing time)."""
     support: bool = True
     """Whether the windows alarmed at the support check too (always, for ``test="support"``)."""
 
@@ -135,7 +136,7 @@ def detection_rates(
     seed: int = 1,
     test: str = "count",
     alternative: str | None = None,
-    burn_in: int = 0,
+    burn_in: int | None = None,
     support: bool = True,
 ) -> DetectionRates:
     """False-alarm and detection rates of the sensor's tests by Monte Carlo of the protocol.
@@ -144,9 +145,9 @@ def detection_rates(
     (one window per run, after ``burn_in`` steps; the flag process does not depend on the plant)
     with the closed-loop kernel of :func:`fakeack.simulate_game`, and applies the test to
     each: the count test of :func:`detect_attack` or the interval test of
-    :func:`fakeack.detect_intervals`, with their exact alarm regions. With ``burn_in=0`` every
-    window starts from the paper's initial condition; a burn-in of a window or more puts the
-    window near the stationary regime that :func:`fakeack.detection_probability` describes. Forged flag-ACKs
+    :func:`fakeack.detect_intervals`, with their exact alarm regions. The default burn-in puts
+    the window in the stationary regime that :func:`fakeack.detection_probability` describes;
+    with ``burn_in=0`` every window starts from the paper's initial condition. Forged flag-ACKs
     (:class:`fakeack.FlagInjection`) count as delivered: the sensor cannot tell them from genuine
     ones, which is how :func:`fakeack.rate_matching_attack` hides from the count test, though not
     from the support check (``support``), which sees a flag-ACK sooner after the previous one than
@@ -179,7 +180,10 @@ def detection_rates(
         The count test's alternative (default "less", as :func:`detect_attack`); the interval test
         and the support check are two-sided (the default for them, and the only value they take).
     burn_in : int, optional
-        Steps simulated before each window, rounded up to whole windows (default 0).
+        Steps simulated before each window, rounded up to whole windows. The default is the
+        automaton's mixing time (:meth:`fakeack.FlagProcess.mixing_steps`, to 1e-3 in total
+        variation, under the attack and without it, whichever is longer): a periodic attack's
+        phase can take 10^4 steps to mix. The result's ``burn_in`` states the value used.
     support : bool, optional
         Whether a window also alarms at the support check: a flag-ACK reaching the sensor fewer
         than z0 + 1 steps (z0 + 2 at mu = 0) after the previous one, which may lie before the
@@ -209,6 +213,10 @@ def detection_rates(
     alternative = check_alternative(alternative)
     if test != "count" and alternative != "two-sided":
         raise ValueError(f"alternative: the {test} test is two-sided by construction")
+    if burn_in is None:
+        from .process import flag_process
+
+        burn_in = max(flag_process(lam, design, a).mixing_steps() for a in (None, att))
     burn_in = as_int("burn_in", burn_in, minimum=0)
     flagged: dict[str, float] = {}
     se: dict[str, float] = {}
