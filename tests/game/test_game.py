@@ -69,11 +69,11 @@ def test_policies_print_and_validate():
 @pytest.mark.parametrize(
     "policy",
     [
-        fa.SensorPolicy("count", 0.01, 2),
-        fa.SensorPolicy("interval", 0.05, 3),
-        fa.SensorPolicy("count", 0.01, 4, "harmful"),
-        fa.SensorPolicy("interval", 0.01, 1, "harmful"),
-        fa.SensorPolicy("count", 0.05, 0),
+        fa.SensorPolicy("count", 0.01, 2, support=False),
+        fa.SensorPolicy("interval", 0.05, 3, support=False),
+        fa.SensorPolicy("count", 0.01, 4, "harmful", support=False),
+        fa.SensorPolicy("interval", 0.01, 1, "harmful", support=False),
+        fa.SensorPolicy("count", 0.05, 0, support=False),
         fa.SensorPolicy("never"),
         fa.SensorPolicy("offline"),
     ],
@@ -116,8 +116,10 @@ def test_weak_attackers_want_to_be_seen_by_any_alarm_but_not_by_harmful_ones(pap
     # Forging lowers J below J_off, so under rule "any" the alarms it trips raise the payoff;
     # the harmful rule ignores them (the count is high, the estimated budget 0).
     att = fa.FlagInjection(0.05)
-    any_ = fa.game_payoff(paper, LAM, RATIO, fa.SensorPolicy("count", 0.01, 4), att, 1000)
-    harm = fa.game_payoff(paper, LAM, RATIO, fa.SensorPolicy("count", 0.01, 4, "harmful"), att, 1000)
+    any_ = fa.game_payoff(paper, LAM, RATIO, fa.SensorPolicy("count", 0.01, 4, support=False), att, 1000)
+    harm = fa.game_payoff(
+        paper, LAM, RATIO, fa.SensorPolicy("count", 0.01, 4, "harmful", support=False), att, 1000
+    )
     never = fa.game_payoff(paper, LAM, RATIO, fa.SensorPolicy("never"), att, 1000)
     assert any_.detection > 0.5 and any_.j > never.j
     assert harm.detection < 1e-12 and harm.j == pytest.approx(never.j, rel=1e-12)

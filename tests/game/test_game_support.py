@@ -168,3 +168,13 @@ def test_the_kernels_argument():
         _kernel(3, kind="online")
     assert _kernel(1, kind="offline")["tested"].sum() == 0  # 1 is no check
     assert math.isfinite(_kernel(10**6)["cost"].mean())
+
+
+def test_the_payoff_formula_refuses_a_policy_with_the_check_against_a_forger():
+    """The payoff plays the test alone; the matrix game builds its policies so."""
+    paper = fa.LinearSystem(A=1.2, C=0.7, Q=0.8, R=0.8)
+    with pytest.raises(ValueError, match="support=False"):
+        fa.game_payoff(paper, 0.5, "1/7", fa.SensorPolicy("count", 0.01, 2), fa.FlagInjection(0.05), 1000)
+    fa.game_payoff(paper, 0.5, "1/7", fa.SensorPolicy("count", 0.01, 2), fa.RandomBlocking(0.2), 1000)
+    sol = fa.solve_game(paper, 0.5, "1/7", 1000, 0.01, 2, [fa.FlagInjection(0.05)], ["count"], ["any"])
+    assert all(not p.support for p in sol.policies)

@@ -13,7 +13,7 @@ from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_int, as_probability, as_ratio, as_real
 from ..attacks.automata import AttackerAutomaton, discard_forgeries
 from ..attacks.chain import j_attack
-from ..attacks.kinds import Attack, AttackLike, PeriodicBlocking, as_attack
+from ..attacks.kinds import Attack, AttackLike, FlagInjection, PeriodicBlocking, as_attack
 from ..attacks.rates import design_high_power_rate
 from ..attacks.threshold import choose_schedule
 from ..detection.belief import count_alarm_probability, count_moments
@@ -188,7 +188,9 @@ def game_payoff(
 
     :math:`J = (J_{att} + d K J_{off}) / (1 + d K)` with d from :func:`fakeack.detection_probability`
     (with ``beta_bar`` for the harmful rule); the module docstring derives it and states what it
-    neglects. The online schedule is :func:`fakeack.design_online` ``(lam, ratio)``.
+    neglects. The online schedule is :func:`fakeack.design_online` ``(lam, ratio)``. The test
+    runs alone: against a forger a policy with the support check (``SensorPolicy(...,
+    support=True)``, the default) is refused with a ``ValueError``.
 
     Parameters
     ----------
@@ -214,5 +216,11 @@ def game_payoff(
     """
     if not isinstance(policy, SensorPolicy):
         raise TypeError(f"policy must be a fakeack.SensorPolicy, got {type(policy).__name__}")
+    played = played_attack(as_attack(attack), authenticated)
+    if policy.support and isinstance(played, FlagInjection) and played.gamma > 0:
+        raise ValueError(
+            "policy: the payoff formula plays the test alone, without the support check, which "
+            "sees a forger; pass SensorPolicy(..., support=False)"
+        )
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
-    return _payoff(setting, policy, played_attack(as_attack(attack), authenticated))
+    return _payoff(setting, policy, played)

@@ -170,7 +170,8 @@ def _policies(
             for k in fallback_list:
                 for r in rule_list:
                     alt = alternative if t == "count" else "two-sided"
-                    p = SensorPolicy(t, a, k, r, alt)
+                    # The matrix game's payoff plays each test alone (no support check).
+                    p = SensorPolicy(t, a, k, r, alt, support=False)
                     if p not in out:
                         out.append(p)
     return out
