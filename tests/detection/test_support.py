@@ -8,6 +8,8 @@ import pytest
 
 import fakeack as fa
 
+GE_BELIEF = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
+
 
 def protocol_short_gap_rate(lam, z0, gamma, beta, n, runs, burn, seed):
     """Windows of n steps after a burn-in: the fraction with a delivered flag-ACK fewer than
@@ -63,9 +65,21 @@ def test_the_attack_free_minimum_gap():
     assert fa.flag_process(0.5, fa.OnlineDesign(2), fa.FlagInjection(0.1)).min_gap == 1
 
 
-def test_the_support_check_takes_no_harmful_rule():
-    with pytest.raises(ValueError, match="beta_bar: the harmful rule reads the count"):
-        fa.detection_probability(0.5, 2, None, 1000, 0.01, test="support", beta_bar=0.3)
+@pytest.mark.parametrize("beta_bar", [0.1, 0.3])
+def test_the_harmful_rule_reads_the_count_of_a_window_with_a_short_gap(beta_bar):
+    """A short gap triggers the fall-back under the harmful rule only in a window whose estimated
+    budget exceeds beta_bar, as in the closed loop: P(short gap, estimate_beta(N) > beta_bar),
+    against the protocol's windows."""
+    runs = 100_000
+    attack = fa.FlagInjection(0.002, block=fa.RandomBlocking(0.3))
+    p = fa.detection_probability(0.5, 2, attack, 200, 0.01, test="support", beta_bar=beta_bar)
+    short, count = protocol_window_counts(0.5, 2, 0.002, 0.3, 200, runs, 300, seed=5)
+    estimate = np.array([fa.estimate_beta(c, 200, 0.5, 2) for c in range(201)])
+    sim = np.mean(short & (estimate[count] > beta_bar))
+    assert 0.01 < p < fa.detection_probability(0.5, 2, attack, 200, 0.01, test="support") - 0.01
+    assert abs(sim - p) < 4 * np.sqrt(p * (1 - p) / runs), (sim, p)
+    with pytest.raises(ValueError, match="beta_bar: the harmful rule is computed on the paper's"):
+        fa.detection_probability(GE_BELIEF, 2, attack, 200, 0.01, test="support", beta_bar=beta_bar)
 
 
 def test_the_one_shot_tests_apply_it_to_the_gaps_they_are_given():

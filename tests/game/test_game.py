@@ -206,7 +206,10 @@ def test_detection_rates_default_is_the_one_sided_count_test_of_stationary_windo
 CLOSED_LOOP = [
     (fa.SensorPolicy("count", 0.01, 1), fa.PeriodicBlocking(1, 5)),
     (fa.SensorPolicy("count", 0.05, 2), None),
-    # The payoff formula is the test's alone: the forgers are played without the support check.
+    # The count test with the support check against forgers: d is exact. The interval test's
+    # combination with the check is approximate, so its forgers are played without the check.
+    (fa.SensorPolicy("count", 0.01, 2), fa.FlagInjection(0.0001)),
+    (fa.SensorPolicy("count", 0.01, 1, "harmful"), fa.FlagInjection(0.0001, fa.RandomBlocking(0.35))),
     (fa.SensorPolicy("interval", 0.05, 3, support=False), fa.rate_matching_attack(LAM, 2, 0.2)),
     (fa.SensorPolicy("interval", 0.01, 1, "harmful"), fa.PeriodicBlocking(2, 3)),
     (fa.SensorPolicy("count", 0.01, 1, "harmful"), fa.RandomBlocking(0.35)),
@@ -394,6 +397,7 @@ alphas = [0.01]
 fallbacks = [2]
 attacks = ["none", "1/5", "2/3", "inject:0.05", "match:0.2"]
 t_max = 6
+grid = 5
 runs = 8
 horizon = 20000
 """

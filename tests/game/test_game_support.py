@@ -170,11 +170,72 @@ def test_the_kernels_argument():
     assert math.isfinite(_kernel(10**6)["cost"].mean())
 
 
-def test_the_payoff_formula_refuses_a_policy_with_the_check_against_a_forger():
-    """The payoff plays the test alone; the matrix game builds its policies so."""
-    paper = fa.LinearSystem(A=1.2, C=0.7, Q=0.8, R=0.8)
-    with pytest.raises(ValueError, match="support=False"):
-        fa.game_payoff(paper, 0.5, "1/7", fa.SensorPolicy("count", 0.01, 2), fa.FlagInjection(0.05), 1000)
-    fa.game_payoff(paper, 0.5, "1/7", fa.SensorPolicy("count", 0.01, 2), fa.RandomBlocking(0.2), 1000)
-    sol = fa.solve_game(paper, 0.5, "1/7", 1000, 0.01, 2, [fa.FlagInjection(0.05)], ["count"], ["any"])
-    assert all(not p.support for p in sol.policies)
+@pytest.mark.parametrize(
+    ("policy", "attack"),
+    [
+        (fa.SensorPolicy("count", 0.01, 2), fa.FlagInjection(0.0004)),
+        (fa.SensorPolicy("count", 0.01, 2, "harmful"), fa.FlagInjection(0.002, fa.RandomBlocking(0.3))),
+        (fa.SensorPolicy("count", 0.05, 1, alternative="less"), fa.FlagInjection(0.01, min_gap=3)),
+        (fa.SensorPolicy("interval", 0.01, 2), fa.FlagInjection(0.2)),
+    ],
+    ids=str,
+)
+def test_the_payoffs_detection_is_detection_probabilitys_with_the_check(system, policy, attack):
+    """game_payoff's d is the window's alarm probability of detection_probability, the support
+    check included (the closed loop checks both in test_game.py)."""
+    n, beta_bar = (1000 if policy.test == "interval" else 200), 0.2
+    p = fa.game_payoff(system, LAM, RATIO, policy, attack, n, beta_bar=beta_bar)
+    d = fa.detection_probability(
+        LAM,
+        2,
+        attack,
+        n,
+        policy.alpha,
+        policy.test,
+        policy.alternative,
+        beta_bar=beta_bar if policy.rule == "harmful" else None,
+    )
+    assert p.detection == pytest.approx(d, abs=1e-12) and p.detection > 0.02
+    alone = fa.SensorPolicy(
+        policy.test, policy.alpha, policy.fallback, policy.rule, policy.alternative, False
+    )
+    alone = fa.game_payoff(system, LAM, RATIO, alone, attack, n, beta_bar=beta_bar)
+    assert alone.detection <= p.detection  # the check only adds alarms
+
+
+def test_the_payoffs_interval_test_with_the_check_warns_where_it_assumes_independence(system):
+    policy = fa.SensorPolicy("interval", 0.01, 2)
+    with pytest.warns(UserWarning, match="game_payoff: the interval test and the support check"):
+        p = fa.game_payoff(system, LAM, RATIO, policy, fa.FlagInjection(0.0004), 1000)
+    p_s = fa.detection_probability(LAM, 2, fa.FlagInjection(0.0004), 1000, 0.01, test="support")
+    p_x = fa.detection_probability(LAM, 2, fa.FlagInjection(0.0004), 1000, 0.01, "interval", support=False)
+    assert p.detection == pytest.approx(1 - (1 - p_s) * (1 - p_x), abs=1e-12)
+
+
+@pytest.mark.parametrize("test", ["count", "interval"])
+def test_mimicry_is_seen_at_the_false_alarm_rate_and_costs_the_attack_free_energy(system, test):
+    """Mimicry delivers the attack-free flag process: d is the test's false-alarm rate and the
+    sensor is at high power 1/7 of the time, while J exceeds the offline schedule's."""
+    policy = fa.SensorPolicy(test, 0.01, 2)
+    p = fa.game_payoff(system, LAM, RATIO, policy, fa.MimicryAttack(), 1000)
+    assert p.detection == pytest.approx(fa.detection_probability(LAM, 2, None, 1000, 0.01, test), abs=1e-12)
+    assert p.high_power == pytest.approx(p.online / 7 + (1 - p.online) / 7, abs=1e-12)
+    assert p.j_attack == pytest.approx(fa.j_attack(system, LAM, 2, attack=fa.MimicryAttack()), rel=1e-12)
+    assert p.j_attack > p.j_offline
+    sol = fa.solve_game(system, LAM, RATIO, 1000, 0.01, 2, [None, fa.MimicryAttack()], [test], ["any"])
+    assert sol.best_attack[sol.policies.index(policy)] == 1  # unseen and the most harmful
+
+
+def test_the_matrix_games_policies_run_the_check_unless_told_not_to(system):
+    naive = fa.FlagInjection(0.05)
+    sol = fa.solve_game(system, LAM, RATIO, 1000, 0.01, 2, [naive], ["count"], ["any"])
+    assert all(p.support for p in sol.policies if not p.special)
+    assert sol.detection[2:, 0].min() > 1 - 1e-6  # the naive forger is seen in every window
+    off = fa.solve_game(system, LAM, RATIO, 1000, 0.01, 2, [naive], ["count"], ["any"], support=False)
+    assert not any(p.support for p in off.policies) and off.detection[2:, 0].max() < 0.999
+    with pytest.raises(TypeError, match="support must be True or False"):
+        fa.solve_game(system, LAM, RATIO, 1000, 0.01, 2, [naive], ["count"], support=1)
+    with pytest.raises(ValueError, match="interval test's gap laws"):
+        fa.game_payoff(
+            system, LAM, RATIO, fa.SensorPolicy("interval", 0.01, 2), fa.FlagInjection(0.01, min_gap=3), 1000
+        )

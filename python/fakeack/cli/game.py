@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -118,6 +119,8 @@ def _frontiers(cfg: Any, game: GameConfig) -> list:
             game.max_detection,
             t_max=game.t_max,
             mu=cfg.online.mu,
+            grid=game.grid,
+            support=game.support,
         )
         for test in game.tests
         for family in families_for(test)
@@ -171,20 +174,25 @@ def run(args: argparse.Namespace) -> int:
     start = time.perf_counter()
     cfg, game = _config(args)
     attacks = game.attack_objects(cfg.lam, cfg.online.z0, cfg.online.mu)
-    sol = solve_game(
-        cfg.system,
-        cfg.lam,
-        cfg.ratio,
-        game.n_steps,
-        game.alphas,
-        game.fallbacks,
-        attacks,
-        tests=game.tests,
-        rules=game.rules,
-    )
-    solved = time.perf_counter() - start
-    frontiers = _frontiers(cfg, game)
-    checks = _checks(cfg, game, sol)
+    # The approximations the results rest on are reported with them (text and JSON), once each.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        sol = solve_game(
+            cfg.system,
+            cfg.lam,
+            cfg.ratio,
+            game.n_steps,
+            game.alphas,
+            game.fallbacks,
+            attacks,
+            tests=game.tests,
+            rules=game.rules,
+            support=game.support,
+        )
+        solved = time.perf_counter() - start
+        frontiers = _frontiers(cfg, game)
+        checks = _checks(cfg, game, sol)
+    notes = list(dict.fromkeys(str(w.message) for w in caught if issubclass(w.category, UserWarning)))
     figures: list[Path] = []
     if args.out and not args.no_figures:
         if have_matplotlib():
@@ -228,6 +236,7 @@ def run(args: argparse.Namespace) -> int:
             for f in frontiers
         ],
         "closed_loop": checks,
+        "notes": notes,
         "seconds_to_solve": solved,
         "figures": figures,
     }
@@ -237,4 +246,6 @@ def run(args: argparse.Namespace) -> int:
         print(to_json(document))
         return 0
     print(_text(cfg, game, sol, frontiers, checks, figures))
+    for note in notes:
+        print(f"note: {note}")
     return 0

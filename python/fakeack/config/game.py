@@ -14,10 +14,14 @@ Every key is optional; the defaults are the paper example's game of the README::
     runs = 64                            # closed-loop check of the equilibrium's pairs (0: none)
     horizon = 200000
     seed = 1
+    grid = 41                            # budgets in the frontiers' random families
+    support = true                       # the sensor runs the support check beside its test
 
 Attacks are written as everywhere else (``"r/t"``, ``"random:beta"``, ``"inject:gamma"``,
-``"inject:gamma+random:beta"``), plus ``"none"`` and ``"match:beta"`` (the rate-matching attack of
-:func:`fakeack.rate_matching_attack` hiding independent blocking of budget beta).
+``"inject:gamma+random:beta"``), plus ``"none"``, ``"match:beta"`` (the rate-matching attack of
+:func:`fakeack.rate_matching_attack` hiding independent blocking of budget beta), ``"careful:beta"``
+(the same, forging no flag-ACK sooner than z0 + 1 steps after the last one, so that the support
+check never sees it) and ``"mimicry"`` (:class:`fakeack.MimicryAttack`).
 """
 
 from __future__ import annotations
@@ -25,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from ..attacks.automata import MimicryAttack
 from ..attacks.kinds import as_attack
 from ..attacks.random import rate_matching_attack
 from .values import ConfigError, Section, check_keys, config_error, read_int, read_real, toml_kind
@@ -50,6 +55,8 @@ GAME_SECTION = Section(
         "runs",
         "horizon",
         "seed",
+        "grid",
+        "support",
     )
 )
 
@@ -93,6 +100,8 @@ class GameConfig:
     runs: int = 64
     horizon: int = 200_000
     seed: int = 1
+    grid: int = 41
+    support: bool = True
 
     def attack_objects(self, lam: float, z0: int, mu: float) -> list:
         """The attacks as objects (``None`` for no attack)."""
@@ -103,12 +112,15 @@ def _attack(text: str, lam: float, z0: int, mu: float, i: int) -> Any:
     where = f"attacks[{i}]"
     if text.strip() == "none":
         return None
-    if text.strip().startswith("match:"):
-        try:
-            beta = float(text.strip()[len("match:") :])
-            return rate_matching_attack(lam, z0, beta, mu)
-        except ValueError as exc:
-            raise config_error("game", where, f"cannot read {text!r}: {exc}") from None
+    if text.strip() == "mimicry":
+        return MimicryAttack()
+    for prefix, gap in (("match:", 1), ("careful:", z0 + 1)):
+        if text.strip().startswith(prefix):
+            try:
+                beta = float(text.strip()[len(prefix) :])
+                return rate_matching_attack(lam, z0, beta, mu, min_gap=gap)
+            except ValueError as exc:
+                raise config_error("game", where, f"cannot read {text!r}: {exc}") from None
     try:
         return as_attack(text, "attack")
     except (TypeError, ValueError) as exc:
@@ -163,7 +175,7 @@ def parse_game(data: dict[str, Any]) -> GameConfig:
         got = _list(table, key, read)
         if got is not None:
             given[key] = got
-    for key, minimum in (("n_steps", 1), ("t_max", 1), ("runs", 0), ("horizon", 1), ("seed", 0)):
+    for key, minimum in (("n_steps", 1), ("t_max", 1), ("runs", 0), ("horizon", 1), ("seed", 0), ("grid", 2)):
         if key in table:
             given[key] = read_int("game", key, table[key], minimum)
     if given.get("runs") == 1:
@@ -173,4 +185,8 @@ def parse_game(data: dict[str, Any]) -> GameConfig:
         if not 0 <= m <= 1:
             raise config_error("game", "max_detection", f"must lie in [0, 1], got {m}")
         given["max_detection"] = m
+    if "support" in table:
+        if not isinstance(table["support"], bool):
+            raise config_error("game", "support", f"must be true or false, got {toml_kind(table['support'])}")
+        given["support"] = table["support"]
     return GameConfig(**given)

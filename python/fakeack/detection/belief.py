@@ -18,7 +18,7 @@ from typing import cast
 import numpy as np
 from scipy.special import ndtr
 
-from .._internal.validate import as_int, as_probability
+from .._internal.validate import as_int, as_probability, as_real
 from ..attacks.automata import AttackerAutomaton, MimicryAttack
 from ..attacks.kinds import Attack, FlagInjection, as_attack
 from ..model.channels import Channel, as_channel, is_paper_channel
@@ -31,6 +31,7 @@ from .count import (
     check_lam_range,
     exact_alarm_probability,
     exact_count_law,
+    harmful_bound,
     process_alarm_bounds,
     uses_exact_law,
 )
@@ -148,21 +149,35 @@ def belief_probability(
     n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
     alpha_ = as_probability("alpha", alpha)
     if test == "support":
-        if beta_bar is not None:
-            raise ValueError("beta_bar: the harmful rule reads the count, not the support check")
         gap = flag_process(channel, design).min_gap
-        return flag_process(truth, design, att).short_gap_probability(n, gap)
+        process = flag_process(truth, design, att)
+        if beta_bar is None:
+            return process.short_gap_probability(n, gap)
+        # The harmful rule reads the window's count: a short gap counts only with N <= harm.
+        harm = harmful_count(channel, design, n, beta_bar, true_channel, span)
+        return process.window_alarm_probability(n, gap, (-1, n + 1), harm)
     if test != "count":
         raise ValueError(
             "test: with a Markov channel, true_channel, lam_range, mimicry, an attacker automaton or a "
             "forger with min_gap > 1 only the count and support tests are computed (the interval "
             f"test's gap laws take the paper's channel and the built-in attacks), got {test!r}"
         )
-    if beta_bar is not None:
-        raise ValueError(
-            "beta_bar: the harmful rule is computed on the paper's channel with no true_channel or lam_range"
-        )
     if alternative not in ALTERNATIVES:
         raise ValueError(f"alternative must be one of {ALTERNATIVES}, got {alternative!r}")
     bounds = belief_bounds(channel, design, n, alpha_, alternative, span)
+    if beta_bar is not None:  # the exact joint law of the count and the harmful region
+        harm = harmful_count(channel, design, n, beta_bar, true_channel, span)
+        return flag_process(truth, design, att).window_alarm_probability(n, 1, bounds, harm)
     return count_probability(bounds, truth, design, n, att)
+
+
+def harmful_count(
+    channel: Channel, design: OnlineDesign, n: int, beta_bar: float, true_channel: object, span: object
+) -> int:
+    """The harmful rule's count bound: N <= harm means an estimated budget above ``beta_bar``
+    (:func:`fakeack.estimate_beta`); computed on the paper's channel, belief equal to the truth."""
+    if not is_paper_channel(channel) or true_channel is not None or span is not None:
+        raise ValueError(
+            "beta_bar: the harmful rule is computed on the paper's channel with no true_channel or lam_range"
+        )
+    return harmful_bound(float(channel.low[0]), design, n, as_real("beta_bar", beta_bar))

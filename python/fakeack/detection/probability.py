@@ -17,7 +17,13 @@ from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack
 from ..model.channels import ChannelLike, as_channel, channel_argument, is_paper_channel
 from ..model.schedules import OnlineDesign, check_online, check_online_channel
 from . import _quadform
-from .belief import belief_bounds, belief_probability, count_alarm_probability, count_moments
+from .belief import (
+    belief_bounds,
+    belief_probability,
+    count_alarm_probability,
+    count_moments,
+    harmful_count,
+)
 from .count import (
     alarm_bounds,
     check_alternative,
@@ -321,34 +327,45 @@ def detection_probability(
         "lam": lam,
         "authenticated": authenticated,
     }
-    if not support or test == "support" or not _forges(attack, authenticated):
+    if not support or test == "support" or not forges(attack, authenticated):
         return _probability(*args, **kw)
+    if test == "count":
+        return _count_with_support(args, kw)
     gaps = {**kw, "beta_bar": None}
     p_s = _probability(channel, z0, attack, n_steps, alpha, "support", alternative, mu, **gaps)
     if p_s == 0.0:
         return _probability(*args, **kw)
-    if test == "count":
-        return _count_with_support(args, kw)
     p_x = _probability(*args, **kw)
-    lower, upper = max(p_s, p_x), min(1.0, p_s + p_x)  # the exact value lies between (Fréchet)
-    combined = 1.0 - (1.0 - p_s) * (1.0 - p_x)
-    if upper - lower <= _PINNED:
-        return combined
+    combined, pinned = support_union(p_s, p_x)
+    if not pinned:
+        warn_support_union("detection_probability", p_s, p_x, stacklevel=2)
+    return combined
+
+
+def support_union(p_s: float, p_x: float) -> tuple[float, bool]:
+    """The interval test's alarm probability with the support check beside it, treating the two as
+    independent: :math:`1 - (1 - p_s)(1 - p_x)`, and whether the exact value's bounds (Fréchet:
+    :math:`\\max(p_s, p_x)` and :math:`\\min(1, p_s + p_x)`) pin it within :data:`_PINNED`."""
+    lower, upper = max(p_s, p_x), min(1.0, p_s + p_x)
+    return 1.0 - (1.0 - p_s) * (1.0 - p_x), upper - lower <= _PINNED
+
+
+def warn_support_union(where: str, p_s: float, p_x: float, stacklevel: int) -> None:
+    """The ``UserWarning`` of an unpinned :func:`support_union` (``stacklevel`` as the caller's)."""
     warnings.warn(
-        f"detection_probability: the interval test and the support check combined as independent "
-        f"(support {p_s:.4g}, interval {p_x:.4g}; the exact value lies in [{max(p_s, p_x):.4g}, "
+        f"{where}: the interval test and the support check combined as independent (support {p_s:.4g}, "
+        f"interval {p_x:.4g}; the exact value lies in [{max(p_s, p_x):.4g}, "
         f"{min(1.0, p_s + p_x):.4g}]); the count test's combination is exact",
         UserWarning,
-        stacklevel=2,
+        stacklevel=stacklevel + 1,
     )
-    return combined
 
 
 #: Bounds on the interval test's combination with the support check this close pin it without a warning.
 _PINNED = 1e-4
 
 
-def _forges(attack: object, authenticated: bool) -> bool:
+def forges(attack: object, authenticated: bool) -> bool:
     """Whether the attack may forge flag-ACKs that the sensor accepts (only forgery shortens gaps)."""
     if authenticated or attack is None:
         return False
@@ -371,17 +388,13 @@ def _count_with_support(args: tuple[Any, ...], kw: dict[str, Any]) -> float:
     span = None if lam_range is None else check_lam_range(lam_range)
     level = as_probability("alpha", alpha)
     bounds = belief_bounds(ch, design, n, level, check_alternative(alternative), span)
-    harm = None
-    if beta_bar is not None:
-        if not is_paper_channel(ch) or true_channel is not None or span is not None:
-            raise ValueError(
-                "beta_bar: the harmful rule is computed on the paper's channel with no true_channel "
-                "or lam_range"
-            )
-        harm = harmful_bound(float(ch.low[0]), design, n, as_real("beta_bar", beta_bar))
+    harm = None if beta_bar is None else harmful_count(ch, design, n, beta_bar, true_channel, span)
     att = attack if isinstance(attack, (MimicryAttack, AttackerAutomaton)) else as_attack(attack)
     gap = flag_process(ch, design).min_gap
-    return flag_process(truth, design, att).window_alarm_probability(n, gap, bounds, harm)
+    process = flag_process(truth, design, att)
+    if process.min_gap == 0 or process.min_gap >= gap:  # no gap is ever short: the test alone
+        return _probability(*args, **kw)
+    return process.window_alarm_probability(n, gap, bounds, harm)
 
 
 def _probability(

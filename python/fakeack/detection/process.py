@@ -255,20 +255,25 @@ class FlagProcess:
                 f"{self.n_states * g * n * top:.2g} operations, more than {MAX_LAW_WORK:.0e}"
             )
         D0t, D1t = self._transposed
-        # f[age, state, count]; age capped at g - 1 (g = 1: one age, no gap is short).
-        f = np.zeros((g, self.n_states, top))
-        f[:, :, 0] = self._age_law(g)
+        # f[state, age, count]; age capped at g - 1 (g = 1: one age, no gap is short). One sparse
+        # product per step for every (age, count) column.
+        f = np.zeros((self.n_states, g, top))
+        f[:, :, 0] = self._age_law(g).T
+        S = self.n_states
         for _ in range(n):
+            flat = f.reshape(S, g * top)
+            delivered = (D1t @ flat).reshape(S, g, top)
+            moved = (D0t @ flat).reshape(S, g, top)
             new = np.zeros_like(f)
-            delivered = np.stack([D1t @ f[a] for a in range(g)])  # (age, state, count)
-            moved = np.stack([D0t @ f[a] for a in range(g)])
             # A delivery at the largest age (a gap of at least g) moves the count up by one;
             # deliveries at a smaller age are short gaps and leave.
-            new[0, :, 1:] = delivered[g - 1, :, :-1]
+            new[:, 0, 1:] = delivered[:, g - 1, :-1]
             if g > 1:
-                new[1:] += moved[:-1]
-            new[g - 1] += moved[g - 1]
+                new[:, 1:] += moved[:, :-1]
+            new[:, g - 1] += moved[:, g - 1]
             f = new
+            if f.sum() < 1e-17:  # every window has alarmed, up to far below rounding
+                break
         left = f.sum(axis=(0, 1))  # P(no alarm so far, N = c), c < top
         quiet = left[max(lo + 1, 0) :]
         if harm is None:

@@ -8,13 +8,19 @@ import numpy as np
 
 from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
-from ..attacks.automata import MimicryAttack, discard_forgeries
+from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeries
 from ..attacks.chain import j_attack
 from ..attacks.kinds import Attack, FlagInjection, PeriodicBlocking, RandomBlocking
 from ..attacks.random import rate_matching_attack
 from ..attacks.rates import high_power_rate
 from ..detection.count import check_alternative
-from ..detection.probability import check_test, detection_probability
+from ..detection.probability import (
+    check_test,
+    detection_probability,
+    forges,
+    support_union,
+    warn_support_union,
+)
 from ..model.schedules import OnlineDesign, check_online
 from ..model.system import LinearSystem, compiled
 
@@ -103,14 +109,17 @@ def stealthy_frontier(
     alternative: str = "two-sided",
     grid: int = 41,
     authenticated: bool = False,
+    support: bool = True,
 ) -> StealthyFrontier:
     r"""The attack of a family that maximises J subject to a detection probability per window of at
     most ``max_detection``.
 
     Every attack of the family is scored by its exact stationary J (:func:`fakeack.j_attack`) and
     its detection probability (:func:`fakeack.detection_probability`, a window of ``n_steps`` at
-    level ``alpha``; the test alone, ``support=False``, as the game plays it); the best
-    admissible one is returned with the family's Pareto frontier.
+    level ``alpha``, with the support check beside the test unless ``support=False``); the best
+    admissible one is returned with the family's Pareto frontier. With the check, the
+    ``"random+inject"`` family's forgers, which ignore the attack-free gaps, are seen in most
+    windows, and the careful ones (``"careful"``, ``"mimicry"``) are what remains.
 
     Families: ``"periodic"``, every :class:`fakeack.PeriodicBlocking` ``(r, t)`` with
     ``t <= t_max`` (pairs not in lowest terms included: they block longer runs);
@@ -152,6 +161,10 @@ def stealthy_frontier(
         Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): each
         attack is then scored by its blocking part (``fakeack.attacks.discard_forgeries``), so a
         forger gains nothing from forging.
+    support : bool, optional
+        Whether the sensor runs the support check beside its test (default True). The count
+        test's combination is exact; the interval test's treats the two as independent and warns
+        once (``UserWarning``) where that is not pinned within 1e-4.
 
     Returns
     -------
@@ -172,29 +185,19 @@ def stealthy_frontier(
     t_max = as_int("t_max", t_max, minimum=1, maximum=500)
     grid = as_int("grid", grid, minimum=2, maximum=1001)
     attacks = _candidates(family, lam, design, t_max, grid)
-    if not isinstance(authenticated, bool):
-        raise TypeError(f"authenticated must be True or False, got {authenticated!r}")
+    for name, flag in (("authenticated", authenticated), ("support", support)):
+        if not isinstance(flag, bool):
+            raise TypeError(f"{name} must be True or False, got {flag!r}")
     played = [discard_forgeries(a, channel=lam, design=design) if authenticated else a for a in attacks]
     j = np.array([j_attack(system, lam, z0, mu=mu, attack=a) for a in played])
-    # The flag-timing test alone, as the game's payoff plays it (the support check would see the
-    # "random+inject" family's naive forger in almost every window). Mimicry delivers exactly the
-    # attack-free flag process, so every flag-timing test sees it at its false-alarm rate.
+    # Mimicry delivers exactly the attack-free flag process, so every flag-timing test sees it
+    # at its false-alarm rate.
+    timed = [None if isinstance(a, MimicryAttack) else a for a in played]
     d = np.array(
-        [
-            detection_probability(
-                lam,
-                z0,
-                None if isinstance(a, MimicryAttack) else a,
-                n,
-                alpha,
-                test,
-                alternative,
-                mu,
-                support=False,
-            )
-            for a in played
-        ]
+        [detection_probability(lam, z0, a, n, alpha, test, alternative, mu, support=False) for a in timed]
     )
+    if support:
+        d = _with_support(lam, design, n, alpha, test, alternative, timed, d)
     j_on = j_attack(system, lam, z0, mu=mu, attack=PeriodicBlocking(0, 1))
     # Pareto frontier: by detection (ties: larger J first), keep each new maximum of J.
     order = np.lexsort((-j, d))
@@ -226,3 +229,32 @@ def stealthy_frontier(
         bound,
         j_on,
     )
+
+
+def _with_support(
+    lam: float,
+    design: OnlineDesign,
+    n: int,
+    alpha: float,
+    test: str,
+    alternative: str,
+    attacks: list[Attack | AttackerAutomaton | None],
+    alone: FloatArray,
+) -> FloatArray:
+    """The detection probabilities with the support check beside the test: exact for the count
+    test; for the interval test combined as independent, with one warning for the family."""
+    d = alone.copy()
+    unpinned: list[tuple[float, float]] = []
+    for i, a in enumerate(attacks):
+        if not forges(a, False):
+            continue  # only forgery shortens a gap
+        if test == "count":
+            d[i] = detection_probability(lam, design.z0, a, n, alpha, test, alternative, design.mu)
+            continue
+        p_s = detection_probability(lam, design.z0, a, n, alpha, "support", mu=design.mu)
+        d[i], pinned = support_union(p_s, float(alone[i]))
+        if not pinned:
+            unpinned.append((p_s, float(alone[i])))
+    if unpinned:
+        warn_support_union(f"stealthy_frontier ({len(unpinned)} attacks)", *unpinned[0], stacklevel=3)
+    return d

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from fractions import Fraction
-from typing import cast
+from typing import TypeAlias, cast
 
 import numpy as np
 
 from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_int, as_probability, as_ratio, as_real
-from ..attacks.automata import AttackerAutomaton, discard_forgeries
+from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeries
 from ..attacks.chain import j_attack
 from ..attacks.kinds import Attack, AttackLike, FlagInjection, PeriodicBlocking, as_attack
 from ..attacks.rates import design_high_power_rate
@@ -27,9 +27,14 @@ from ..detection.count import (
 from ..detection.interval_test import IntervalTest, cached_interval_test
 from ..detection.probability import (
     AttackForm,
+    forges,
     interval_batch,
     sum_tails,
+    support_union,
+    warn_support_union,
 )
+from ..detection.process import FlagProcess, flag_process
+from ..model.channels import as_channel
 from ..model.schedules import OnlineDesign, design_online, j_offline
 from ..model.system import LinearSystem, compiled
 from .policies import SensorPolicy
@@ -38,6 +43,20 @@ __all__ = [
     "Payoff",
     "game_payoff",
 ]
+
+
+#: What the game's attacker may play: a built-in attack, mimicry or any attacker automaton.
+GameAttack: TypeAlias = Attack | MimicryAttack | AttackerAutomaton | None
+
+
+def _careful(attack: GameAttack) -> bool:
+    """A forger with a minimum gap: the renewal routes take min_gap = 1, the engine the rest."""
+    return isinstance(attack, FlagInjection) and attack.min_gap > 1
+
+
+def _built_in(attack: GameAttack) -> Attack | None:
+    assert attack is None or isinstance(attack, Attack)  # checked by the caller
+    return attack
 
 
 @dataclass
@@ -70,13 +89,17 @@ class _Setting:
             bb = as_real("beta_bar", beta_bar)
         return cls(system, lam_f, r, design, n, bb, j_offline(system, lam_f, r), float(r))
 
-    def attack_costs(self, attack: Attack | None) -> tuple[float, float]:
+    def attack_costs(self, attack: GameAttack) -> tuple[float, float]:
         """(J, high-power rate) online under the attack (stationary)."""
         key = ("cost", attack)
         if key not in self._cache:
             online = PeriodicBlocking(0, 1) if attack is None else attack
             j = j_attack(self.system, self.lam, self.design.z0, mu=self.design.mu, attack=online)
-            self._cache[key] = (j, design_high_power_rate(self.lam, self.design, attack))
+            if attack is None or (isinstance(attack, Attack) and not _careful(attack)):
+                hp = design_high_power_rate(self.lam, self.design, attack)
+            else:  # the sensor is at high power the step after each delivered flag-ACK
+                hp = self._process(attack).rate
+            self._cache[key] = (j, hp)
         return cast(tuple[float, float], self._cache[key])
 
     def harm(self, policy: SensorPolicy) -> int | None:
@@ -88,36 +111,89 @@ class _Setting:
             self._cache[key] = harmful_bound(self.lam, self.design, self.n, self.beta_bar)
         return cast(int, self._cache[key])
 
-    def detection(self, policy: SensorPolicy, attack: Attack | None) -> float:
+    def detection(self, policy: SensorPolicy, attack: GameAttack) -> float:
         """d: probability that a stationary online window ends with a triggering alarm."""
         return float(self.detections(policy, [attack])[0])
 
-    def detections(self, policy: SensorPolicy, attacks: list[Attack | None]) -> FloatArray:
-        """d for each attack (tails of every attack computed in one vectorised call)."""
+    def detections(self, policy: SensorPolicy, attacks: list[GameAttack]) -> FloatArray:
+        """d for each attack, as :func:`fakeack.detection_probability` gives it (with the support
+        check when the policy has it; the tails of every built-in attack in one vectorised call)."""
         if policy.special:
             return np.zeros(len(attacks))
         harm = self.harm(policy)
+        timing = [self._as_timed(a) for a in attacks]
+        d = self._test_alone(policy, timing, harm)
+        if not policy.support:
+            return d
+        unpinned: list[tuple[float, float]] = []
+        for i, a in enumerate(timing):
+            if not forges(a, False):
+                continue  # only forgery makes a gap shorter than the attack-free minimum
+            process = self._process(a)
+            if policy.test == "count":
+                d[i] = process.window_alarm_probability(self.n, self.min_gap, self._bounds(policy), harm)
+                continue
+            if harm is None:
+                p_s = process.short_gap_probability(self.n, self.min_gap)
+            else:
+                p_s = process.window_alarm_probability(self.n, self.min_gap, (-1, self.n + 1), harm)
+            d[i], pinned = support_union(p_s, float(d[i]))
+            if not pinned:
+                unpinned.append((p_s, float(d[i])))
+        if unpinned:
+            warn_support_union("game_payoff", *unpinned[0], stacklevel=4)
+        return d
+
+    def _test_alone(self, policy: SensorPolicy, attacks: list[GameAttack], harm: int | None) -> FloatArray:
+        """d of the policy's test without the support check."""
         if policy.test == "count":
-            bkey = ("bounds", policy.alpha, policy.alternative)
-            if bkey not in self._cache:
-                self._cache[bkey] = alarm_bounds(
-                    self.lam, self.design, self.n, cast(float, policy.alpha), policy.alternative
+            bounds = self._bounds(policy)
+            return np.array([self._count_any(bounds, a, harm) for a in attacks])
+        for a in attacks:
+            if not (a is None or isinstance(a, Attack)) or _careful(a):
+                raise ValueError(
+                    f"attacks: the interval test's gap laws take the built-in attacks with min_gap = 1 "
+                    f"and mimicry, not {a}"
                 )
-            bounds = cast(tuple[int, int], self._cache[bkey])
-            if uses_exact_law(self.n, self.lam, self.design):  # as detection_probability
-                return np.array(
-                    [
-                        exact_alarm_probability(
-                            bounds, exact_count_law(self.n, self.lam, self.design, a), harm
-                        )
-                        for a in attacks
-                    ]
-                )
-            return np.array(
-                [count_alarm_probability(bounds, self.n, self._moments(a), harm) for a in attacks]
-            )
         test = cached_interval_test(self.lam, self.design, self.n, cast(float, policy.alpha))
-        return sum_tails([interval_batch(test, self._form(test, a), harm) for a in attacks])
+        return sum_tails([interval_batch(test, self._form(test, _built_in(a)), harm) for a in attacks])
+
+    def _count_any(self, bounds: tuple[int, int], attack: GameAttack, harm: int | None) -> float:
+        """The count test under any attack, from the exact count law of the engine's automaton."""
+        if attack is None or (isinstance(attack, Attack) and not _careful(attack)):
+            attack = _built_in(attack)
+            if uses_exact_law(self.n, self.lam, self.design):
+                law = exact_count_law(self.n, self.lam, self.design, attack)
+                return exact_alarm_probability(bounds, law, harm)
+            return count_alarm_probability(bounds, self.n, self._moments(attack), harm)
+        return self._process(attack).window_alarm_probability(self.n, 1, bounds, harm)
+
+    def _bounds(self, policy: SensorPolicy) -> tuple[int, int]:
+        key = ("bounds", policy.alpha, policy.alternative)
+        if key not in self._cache:
+            self._cache[key] = alarm_bounds(
+                self.lam, self.design, self.n, cast(float, policy.alpha), policy.alternative
+            )
+        return cast(tuple[int, int], self._cache[key])
+
+    def _as_timed(self, attack: GameAttack) -> GameAttack:
+        """The attack as the flag-timing tests see it: mimicry of this game's own channel and
+        detector delivers the attack-free flag process, so it is tested as no attack."""
+        if isinstance(attack, MimicryAttack) and attack.channel in (None, as_channel(self.lam)):
+            if attack.design in (None, self.design):
+                return None
+        return attack
+
+    @property
+    def min_gap(self) -> int:
+        """The support check's shortest attack-free gap."""
+        return self._process(None).min_gap
+
+    def _process(self, attack: GameAttack) -> FlagProcess:
+        key = ("process", attack)
+        if key not in self._cache:
+            self._cache[key] = flag_process(self.lam, self.design, attack)
+        return cast(FlagProcess, self._cache[key])
 
     def _moments(self, attack: Attack | None) -> tuple[float, float]:
         key = ("moments", attack)
@@ -149,18 +225,24 @@ class Payoff:
     j_offline: float
 
 
-def played_attack(attack: Attack | None, authenticated: bool) -> Attack | None:
+def as_game_attack(attack: object, name: str = "attack") -> GameAttack:
+    """A built-in attack (any spelling :func:`fakeack.attacks.as_attack` reads), mimicry or an
+    attacker automaton."""
+    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
+        return attack
+    return as_attack(cast(AttackLike, attack), name)
+
+
+def played_attack(setting: _Setting, attack: GameAttack, authenticated: bool) -> GameAttack:
     """The attack as the sensor meets it: without its forgeries when flag-ACKs are authenticated."""
     if not isinstance(authenticated, bool):
         raise TypeError(f"authenticated must be True or False, got {authenticated!r}")
     if not authenticated:
         return attack
-    kept = discard_forgeries(attack)
-    assert not isinstance(kept, AttackerAutomaton)  # a built-in attack stays built-in
-    return kept
+    return discard_forgeries(attack, channel=setting.lam, design=setting.design)
 
 
-def _payoff(setting: _Setting, policy: SensorPolicy, attack: Attack | None, d: float | None = None) -> Payoff:
+def _payoff(setting: _Setting, policy: SensorPolicy, attack: GameAttack, d: float | None = None) -> Payoff:
     j_att, hp_att = setting.attack_costs(attack)
     if policy.test == "offline":
         return Payoff(setting.j_off, setting.hp_off, 0.0, 0.0, j_att, setting.j_off)
@@ -178,7 +260,7 @@ def game_payoff(
     lam: float,
     ratio: RatioLike,
     policy: SensorPolicy,
-    attack: AttackLike,
+    attack: AttackLike | MimicryAttack | AttackerAutomaton,
     n_steps: int,
     *,
     beta_bar: float | None = None,
@@ -187,10 +269,16 @@ def game_payoff(
     r"""The payoff of a (policy, attack) pair: the renewal average over online and fall-back windows.
 
     :math:`J = (J_{att} + d K J_{off}) / (1 + d K)` with d from :func:`fakeack.detection_probability`
-    (with ``beta_bar`` for the harmful rule); the module docstring derives it and states what it
-    neglects. The online schedule is :func:`fakeack.design_online` ``(lam, ratio)``. The test
-    runs alone: against a forger a policy with the support check (``SensorPolicy(...,
-    support=True)``, the default) is refused with a ``ValueError``.
+    (with ``beta_bar`` for the harmful rule, and with the support check when the policy has it,
+    as it does by default); the module docstring derives it and states what it neglects. The
+    online schedule is :func:`fakeack.design_online` ``(lam, ratio)``.
+
+    The count test's d is exact or normal as in :func:`fakeack.detection_probability`, and
+    exact with the support check against a forger; the interval test's combination with the
+    support check treats the two as independent and warns (``UserWarning``) unless that is
+    pinned within 1e-4. Mimicry of the game's own channel and detector delivers the attack-free
+    flag process, so every test sees it at its false-alarm rate; any other attacker automaton
+    is scored by the count test only (the interval test's gap laws take the built-in attacks).
 
     Parameters
     ----------
@@ -202,7 +290,7 @@ def game_payoff(
         Energy ratio p/q.
     policy : SensorPolicy
         The sensor's policy.
-    attack : None or attack
+    attack : None, attack, MimicryAttack or AttackerAutomaton
         The attack.
     n_steps : int
         Window length in steps.
@@ -216,11 +304,5 @@ def game_payoff(
     """
     if not isinstance(policy, SensorPolicy):
         raise TypeError(f"policy must be a fakeack.SensorPolicy, got {type(policy).__name__}")
-    played = played_attack(as_attack(attack), authenticated)
-    if policy.support and isinstance(played, FlagInjection) and played.gamma > 0:
-        raise ValueError(
-            "policy: the payoff formula plays the test alone, without the support check, which "
-            "sees a forger; pass SensorPolicy(..., support=False)"
-        )
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
-    return _payoff(setting, policy, played)
+    return _payoff(setting, policy, played_attack(setting, as_game_attack(attack), authenticated))

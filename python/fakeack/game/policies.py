@@ -149,6 +149,7 @@ def _policies(
     fallbacks: int | Iterable[int],
     rules: str | Iterable[str],
     alternative: str,
+    support: bool = True,
 ) -> list[SensorPolicy]:
     test_list: list[str] = _listed("tests", tests)
     alpha_list: list[float] = _listed("alphas", alphas)
@@ -170,8 +171,7 @@ def _policies(
             for k in fallback_list:
                 for r in rule_list:
                     alt = alternative if t == "count" else "two-sided"
-                    # The matrix game's payoff plays each test alone (no support check).
-                    p = SensorPolicy(t, a, k, r, alt, support=False)
+                    p = SensorPolicy(t, a, k, r, alt, support=support)
                     if p not in out:
                         out.append(p)
     return out

@@ -10,10 +10,11 @@ import numpy as np
 import numpy.typing as npt
 
 from .._internal.types import FloatArray, RatioLike
-from ..attacks.kinds import Attack, AttackLike, as_attack
+from ..attacks.automata import AttackerAutomaton, MimicryAttack
+from ..attacks.kinds import AttackLike
 from ..detection.count import check_alternative
 from ..model.system import LinearSystem
-from .payoff import _payoff, _Setting, played_attack
+from .payoff import GameAttack, _payoff, _Setting, as_game_attack, played_attack
 from .policies import SensorPolicy, _policies
 
 __all__ = [
@@ -28,7 +29,7 @@ class Stackelberg:
     """The sensor commits to a pure policy first; the attacker best-responds."""
 
     policy: SensorPolicy
-    attack: Attack | None
+    attack: GameAttack
     """The attacker's best response."""
     payoff: float
     """The committed policy's worst-case payoff."""
@@ -45,7 +46,7 @@ class GameSolution:
     detection: FloatArray
     """d for each pair."""
     policies: list[SensorPolicy]
-    attacks: list[Attack | None]
+    attacks: list[GameAttack]
     value: float
     """The value of the zero-sum game (mixed strategies)."""
     sensor_strategy: FloatArray
@@ -87,14 +88,14 @@ class GameSolution:
         return "\n".join(lines)
 
 
-def _name(attack: Attack | None) -> str:
+def _name(attack: GameAttack) -> str:
     return "no attack" if attack is None else str(attack)
 
 
-def _attack_list(attacks: Iterable[AttackLike]) -> list[Attack | None]:
+def _attack_list(attacks: Iterable[AttackLike | MimicryAttack | AttackerAutomaton]) -> list[GameAttack]:
     if isinstance(attacks, (str, bytes)) or not hasattr(attacks, "__iter__"):
         raise TypeError("attacks must be a list of attacks (None for no attack)")
-    out = [as_attack(a, "attacks") for a in attacks]
+    out = [as_game_attack(a, "attacks") for a in attacks]
     if not out:
         raise ValueError("attacks must not be empty")
     return out
@@ -107,13 +108,14 @@ def solve_game(
     n_steps: int,
     alphas: float | Iterable[float],
     fallbacks: int | Iterable[int],
-    attacks: Iterable[AttackLike],
+    attacks: Iterable[AttackLike | MimicryAttack | AttackerAutomaton],
     tests: str | Iterable[str] = ("count", "interval"),
     rules: str | Iterable[str] = ("any", "harmful"),
     *,
     alternative: str = "two-sided",
     beta_bar: float | None = None,
     authenticated: bool = False,
+    support: bool = True,
 ) -> GameSolution:
     r"""Solve the zero-sum game between the sensor's policies and a list of attacks.
 
@@ -141,7 +143,9 @@ def solve_game(
     fallbacks : sequence of int
         Offline windows after a triggering alarm, each >= 0.
     attacks : sequence
-        The attacker's choices: ``None`` (no attack) or any attack object.
+        The attacker's choices: ``None`` (no attack), any attack object,
+        :class:`fakeack.MimicryAttack` or :class:`fakeack.AttackerAutomaton` (scored by the
+        count test only, see :func:`game_payoff`).
     tests : sequence of {"count", "interval"}, optional
         The tests (default both).
     rules : sequence of {"any", "harmful"}, optional
@@ -154,6 +158,11 @@ def solve_game(
         Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): each
         attack is then scored by its blocking part (``fakeack.attacks.discard_forgeries``), so a
         forger gains nothing from forging.
+    support : bool, optional
+        Whether every test policy also runs the support check (default True; see
+        :class:`SensorPolicy`). Against it a forger that ignores the attack-free gaps is seen in
+        almost every window; the careful forger (``FlagInjection(..., min_gap=z0 + 1)``) and
+        mimicry are not.
 
     Returns
     -------
@@ -162,10 +171,12 @@ def solve_game(
     from scipy.optimize import linprog
 
     alternative = check_alternative(alternative)
-    policies = _policies(tests, alphas, fallbacks, rules, alternative)
+    if not isinstance(support, bool):
+        raise TypeError(f"support must be True or False, got {support!r}")
+    policies = _policies(tests, alphas, fallbacks, rules, alternative, support)
     attack_list = _attack_list(attacks)
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
-    played = [played_attack(a, authenticated) for a in attack_list]
+    played = [played_attack(setting, a, authenticated) for a in attack_list]
     payoffs = []
     for p in policies:
         d = setting.detections(p, played)
