@@ -11,7 +11,7 @@ import sys
 from fractions import Fraction
 
 import fakeack as fa
-from fakeack.game.frontier import families_for
+from fakeack.game.frontier import FAMILIES
 
 SYSTEM = fa.LinearSystem(A=1.2, C=0.7, Q=0.8, R=0.8)
 LAM, RATIO, Z0 = 0.5, Fraction(1, 7), 2
@@ -60,7 +60,7 @@ def frontier() -> None:
     for n in (1000, 10_000):
         for test in ("count", "interval"):
             cells = []
-            for family in families_for(test):
+            for family in FAMILIES:
                 f = fa.stealthy_frontier(SYSTEM, LAM, Z0, n, 0.01, test, family, 0.02, t_max=60)
                 cells.append(f"{f.j:.4f} at {f.detection:.4f}: {f.attack}")
             print(f"| {n} | {test} | " + " | ".join(cells) + " |", flush=True)

@@ -260,6 +260,7 @@ tests = ["count"]
 rules = ["any"]
 attacks = ["none", "1/5"]
 t_max = 4
+grid = 5
 runs = 0
 """
 

@@ -94,7 +94,7 @@ def test_bad_arguments_name_themselves():
     with pytest.raises(TypeError, match="lam_range must be a pair"):
         fa.detection_probability(0.5, 2, None, 1000, 0.01, lam_range=0.5)
     with pytest.raises(ValueError, match="only the count and support tests"):
-        fa.detection_probability(0.5, 2, None, 1000, 0.01, test="interval", true_channel=0.48)
+        fa.detection_probability(0.5, 2, None, 1000, 0.01, test="interval", lam_range=(0.48, 0.5))
     with pytest.raises(ValueError, match="beta_bar"):
         fa.detection_probability(GE, 2, None, 1000, 0.01, beta_bar=0.3)
     with pytest.raises(ValueError, match="true_channel"):

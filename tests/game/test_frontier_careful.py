@@ -30,9 +30,9 @@ def test_the_careful_forger_never_trips_the_support_check_and_its_best_beats_rat
     careful = fa.rate_matching_attack(0.5, 2, 0.2, min_gap=3)
     assert f.detection <= 0.02
     assert f.j >= fa.j_attack(paper, 0.5, 2, attack=careful) - 1e-12
-    with pytest.raises(ValueError, match="only the count and support tests"):
-        fa.stealthy_frontier(paper, 0.5, 2, 1000, 0.01, "interval", "careful", 0.02, grid=3)
-    assert "careful" not in fa.game.frontier.families_for("interval")
+    g = fa.stealthy_frontier(paper, 0.5, 2, 1000, 0.01, "interval", "careful", 0.02, grid=3)
+    assert all(a.min_gap == 3 for a in g.frontier_attacks) and g.detection <= 0.02
+    assert g.j > fa.j_online(paper, 0.5, 2)
 
 
 def test_authenticated_mimicry_is_blocking_and_is_seen(paper):

@@ -417,9 +417,7 @@ def test_game_command(tmp_path, capsys):
     # With an attack costlier than the offline schedule in the list, the value is J_off.
     assert doc["value"] == pytest.approx(doc["j_offline"], rel=1e-9)
     assert doc["stackelberg"]["policy"] == "always offline"
-    assert (
-        len(doc["frontiers"]) == 9 and doc["closed_loop"]
-    )  # 5 families for the count test, 4 for the interval test
+    assert len(doc["frontiers"]) == 10 and doc["closed_loop"]  # 5 families for each test
     out = tmp_path / "out"
     assert main(["game", str(cfg), "--out", str(out)]) == 0
     text = capsys.readouterr().out

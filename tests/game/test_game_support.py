@@ -235,7 +235,8 @@ def test_the_matrix_games_policies_run_the_check_unless_told_not_to(system):
     assert not any(p.support for p in off.policies) and off.detection[2:, 0].max() < 0.999
     with pytest.raises(TypeError, match="support must be True or False"):
         fa.solve_game(system, LAM, RATIO, 1000, 0.01, 2, [naive], ["count"], support=1)
-    with pytest.raises(ValueError, match="interval test's gap laws"):
-        fa.game_payoff(
-            system, LAM, RATIO, fa.SensorPolicy("interval", 0.01, 2), fa.FlagInjection(0.01, min_gap=3), 1000
-        )
+    careful = fa.FlagInjection(0.01, min_gap=3)
+    p = fa.game_payoff(system, LAM, RATIO, fa.SensorPolicy("interval", 0.01, 2), careful, 1000)
+    assert p.detection == pytest.approx(
+        fa.detection_probability(LAM, 2, careful, 1000, 0.01, "interval"), abs=1e-14
+    )

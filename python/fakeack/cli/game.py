@@ -14,7 +14,7 @@ from typing import Any
 
 from ..config.analyze import ConfigError, example_text, load_config, loads, parse_config
 from ..config.game import GameConfig, parse_game
-from ..game.frontier import families_for, stealthy_frontier
+from ..game.frontier import FAMILIES, stealthy_frontier
 from ..game.simulate import simulate_game
 from ..game.solve import solve_game
 from ..model.channels import BernoulliChannel
@@ -123,7 +123,7 @@ def _frontiers(cfg: Any, game: GameConfig) -> list:
             support=game.support,
         )
         for test in game.tests
-        for family in families_for(test)
+        for family in FAMILIES
     ]
 
 

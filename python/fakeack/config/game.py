@@ -61,7 +61,8 @@ GAME_SECTION = Section(
 )
 
 #: The attacker's choices of the default game: none, the paper's attack, a memoryless jammer, a
-#: forger, and rate matching (up to a budget of 0.8, where it costs more than the offline schedule).
+#: forger, rate matching (up to a budget of 0.8, where it costs more than the offline schedule),
+#: its careful version that the support check never sees, and mimicry.
 DEFAULT_ATTACKS = (
     "none",
     "1/10",
@@ -82,6 +83,10 @@ DEFAULT_ATTACKS = (
     "match:0.4",
     "match:0.5",
     "match:0.8",
+    "careful:0.2",
+    "careful:0.5",
+    "careful:0.8",
+    "mimicry",
 )
 
 

@@ -14,7 +14,7 @@ from .._internal.validate import as_int, as_probability, as_real
 from ..attacks._args import required
 from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeries
 from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack
-from ..model.channels import ChannelLike, as_channel, channel_argument, is_paper_channel
+from ..model.channels import Channel, ChannelLike, as_channel, channel_argument, is_paper_channel
 from ..model.schedules import OnlineDesign, check_online, check_online_channel
 from . import _quadform
 from .belief import (
@@ -33,6 +33,7 @@ from .count import (
     harmful_bound,
     uses_exact_law,
 )
+from .gap_bins import bin_rates
 from .interval_test import IntervalTest, cached_interval_test
 from .intervals import design_walk
 from .process import flag_process
@@ -79,17 +80,28 @@ def _count_probability(
     return count_alarm_probability(bounds, n, count_moments(lam, design, n, attack), harm)
 
 
-def _attack_form(test: IntervalTest, attack: AttackLike) -> tuple[FloatArray, FloatArray] | None:
-    """(mean, covariance) of y = D^-1/2 (O - E) under the attack; None when no flag gets through."""
-    w = design_walk(test.lam, test.design, attack)
-    if w.endless:
-        return None
+def _attack_form(
+    test: IntervalTest, attack: object, truth: Channel | None = None
+) -> tuple[FloatArray, FloatArray] | None:
+    """(mean, covariance) of y = D^-1/2 (O - E) under the attack (on the true channel, default the
+    test's); None when no flag gets through. The gap walk's Markov renewal moments for the
+    built-in attacks on the paper's channel, the flag process's (:mod:`.gap_bins`) otherwise."""
+    if truth is None and (attack is None or (isinstance(attack, Attack) and not _careful(attack))):
+        w = design_walk(test.lam, test.design, attack)
+        if w.endless:
+            return None
+        pa, sigma_a = w.time_covariance(test.edges)
+        rates = pa / w.mean
+    else:
+        process = flag_process(test.lam if truth is None else truth, test.design, attack)
+        if process.rate <= 0.0:
+            return None
+        rates, sigma_a = bin_rates(process, test.edges)
     n = test.n_steps
     m0 = n / test.expected.sum()
     p0 = test.expected / test.expected.sum()
-    pa, sigma_a = w.time_covariance(test.edges)
     scale = np.sqrt(p0 / m0)
-    mean = math.sqrt(n) * (pa / w.mean - p0 / m0) / scale
+    mean = math.sqrt(n) * (rates - p0 / m0) / scale
     cov = sigma_a / np.outer(scale, scale)
     return mean, cov
 
@@ -107,8 +119,8 @@ class AttackForm:
     split where s² crosses c).
     """
 
-    def __init__(self, test: IntervalTest, attack: AttackLike) -> None:
-        form = _attack_form(test, attack)
+    def __init__(self, test: IntervalTest, attack: object, truth: Channel | None = None) -> None:
+        form = _attack_form(test, attack, truth)
         self.none = form is None  # no flag: O = 0, X² = Σ E deterministic, N = 0
         self.total = float(test.expected.sum())
         if form is None:
@@ -203,8 +215,15 @@ def interval_batch(test: IntervalTest, form: AttackForm, harm: int | None) -> Ro
     return form.rows_joint(test.critical, s_hi)
 
 
-def _interval_probability(test: IntervalTest, attack: AttackLike, harm: int | None) -> float:
-    return float(sum_tails([interval_batch(test, AttackForm(test, attack), harm)])[0])
+def _interval_probability(
+    test: IntervalTest, attack: object, harm: int | None, truth: Channel | None = None
+) -> float:
+    return float(sum_tails([interval_batch(test, AttackForm(test, attack, truth), harm)])[0])
+
+
+def _careful(attack: object) -> bool:
+    """A forger with a minimum gap, which the gap walk does not take (the flag process does)."""
+    return isinstance(attack, FlagInjection) and attack.min_gap > 1
 
 
 def _joint_tail(test: IntervalTest, attack: AttackLike, s_hi: float) -> float:
@@ -419,11 +438,14 @@ def _probability(
     if authenticated and attack is not None and z0 is not None:
         truth = ch if true_channel is None else as_channel(true_channel, "true_channel")
         played = discard_forgeries(attack, channel=truth, design=OnlineDesign(z0, mu))
-    if (
+    general = (
         isinstance(played, (AttackerAutomaton, MimicryAttack))
-        or (isinstance(played, FlagInjection) and played.min_gap > 1)  # the gap laws take min_gap = 1
-        or test == "support"
+        or _careful(played)  # the gap laws take min_gap = 1
         or true_channel is not None
+    )
+    if (
+        (general and test != "interval")
+        or test == "support"
         or lam_range is not None
         or not is_paper_channel(ch)
     ):
@@ -432,15 +454,28 @@ def _probability(
         )
     lam_, design = check_online_channel(ch, name, z0, mu, "detection_probability")
     lam_, design = check_online(lam_, design.z0, design.mu)
-    att = as_attack(cast("AttackLike", played))
     n = as_int("n_steps", required("detection_probability", "n_steps", n_steps), minimum=1, maximum=10**9)
     alpha = as_probability("alpha", required("detection_probability", "alpha", alpha))
     test = check_test(test)
     alternative = check_alternative(alternative)
     lam = lam_
     harm = None if beta_bar is None else harmful_bound(lam, design, n, as_real("beta_bar", beta_bar))
+    if general:  # the interval test on the flag process of any attack and true channel
+        truth_ch = None if true_channel is None else as_channel(true_channel, "true_channel")
+        if truth_ch is not None and beta_bar is not None:
+            harmful_count(ch, design, n, beta_bar, true_channel, None)  # refused: belief and truth differ
+        general_att: object = played
+        if not isinstance(played, (MimicryAttack, AttackerAutomaton)):
+            general_att = as_attack(cast("AttackLike", played))
+        if alternative != "two-sided":
+            raise ValueError(
+                f"alternative: the interval test is two-sided by construction, got {alternative!r}"
+            )
+        test_ = cached_interval_test(lam, design, n, alpha)
+        return _interval_probability(test_, general_att, harm, truth_ch)
+    built_in = as_attack(cast("AttackLike", played))
     if test == "count":
-        return _count_probability(lam, design, n, alpha, alternative, att, harm)
+        return _count_probability(lam, design, n, alpha, alternative, built_in, harm)
     if alternative != "two-sided":
         raise ValueError(f"alternative: the interval test is two-sided by construction, got {alternative!r}")
-    return _interval_probability(cached_interval_test(lam, design, n, alpha), att, harm)
+    return _interval_probability(cached_interval_test(lam, design, n, alpha), built_in, harm)

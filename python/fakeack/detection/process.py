@@ -62,8 +62,8 @@ def _stationary(K: sp.csr_array) -> FloatArray:
 
 
 def _poisson(K: sp.csr_array, r: FloatArray, pi: FloatArray) -> FloatArray:
-    """g with (I - K) g = r and pi g = 0 (r has pi r = 0): fix g at a recurrent state, then
-    shift, since the equations fixed there are independent for a unichain."""
+    """g with (I - K) g = r and pi g = 0 (r has pi r = 0; one column or several): fix g at a
+    recurrent state, then shift, since the equations fixed there are independent for a unichain."""
     n = K.shape[0]
     ref = int(np.argmax(pi))
     A = (sp.identity(n, format="csr") - K).tolil()

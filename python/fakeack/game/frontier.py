@@ -35,12 +35,6 @@ __all__ = [
 FAMILIES = ("periodic", "random", "random+inject", "careful", "mimicry")
 
 
-def families_for(test: str) -> tuple[str, ...]:
-    """The families :func:`stealthy_frontier` scores for ``test``: the interval test's gap laws
-    do not take the careful forger's ``min_gap > 1``."""
-    return FAMILIES if check_test(test) == "count" else tuple(f for f in FAMILIES if f != "careful")
-
-
 @dataclass(frozen=True)
 class StealthyFrontier:
     """The result of :func:`stealthy_frontier`."""
@@ -127,9 +121,10 @@ def stealthy_frontier(
     ``"random+inject"``, :class:`fakeack.FlagInjection` with independent blocking on a grid of
     budgets β and forging probabilities γ in [0, 0.2], plus the rate-matching attack
     (:func:`fakeack.rate_matching_attack`) at each β; ``"careful"``, the same forger respecting
-    the support check (``min_gap = z0 + 1``, six γ per β, and its rate-matching curve; count
-    test only); ``"mimicry"``, :class:`fakeack.MimicryAttack`, whose flag law is the
-    attack-free one, so its detection probability is the test's false-alarm rate.
+    the support check (``min_gap = z0 + 1``, six γ per β, and its rate-matching curve, scored on
+    the flag process of the engine's automaton); ``"mimicry"``, :class:`fakeack.MimicryAttack`,
+    whose flag law is the attack-free one, so its detection probability is the test's
+    false-alarm rate.
 
     Parameters
     ----------

@@ -149,14 +149,8 @@ class _Setting:
         if policy.test == "count":
             bounds = self._bounds(policy)
             return np.array([self._count_any(bounds, a, harm) for a in attacks])
-        for a in attacks:
-            if not (a is None or isinstance(a, Attack)) or _careful(a):
-                raise ValueError(
-                    f"attacks: the interval test's gap laws take the built-in attacks with min_gap = 1 "
-                    f"and mimicry, not {a}"
-                )
         test = cached_interval_test(self.lam, self.design, self.n, cast(float, policy.alpha))
-        return sum_tails([interval_batch(test, self._form(test, _built_in(a)), harm) for a in attacks])
+        return sum_tails([interval_batch(test, self._form(test, a), harm) for a in attacks])
 
     def _count_any(self, bounds: tuple[int, int], attack: GameAttack, harm: int | None) -> float:
         """The count test under any attack, from the exact count law of the engine's automaton."""
@@ -201,7 +195,7 @@ class _Setting:
             self._cache[key] = count_moments(self.lam, self.design, self.n, attack)
         return cast(tuple[float, float], self._cache[key])
 
-    def _form(self, test: IntervalTest, attack: Attack | None) -> AttackForm:
+    def _form(self, test: IntervalTest, attack: GameAttack) -> AttackForm:
         key = ("form", attack)  # the bins depend on n only, not on alpha
         if key not in self._cache:
             self._cache[key] = AttackForm(test, attack)
@@ -277,8 +271,9 @@ def game_payoff(
     exact with the support check against a forger; the interval test's combination with the
     support check treats the two as independent and warns (``UserWarning``) unless that is
     pinned within 1e-4. Mimicry of the game's own channel and detector delivers the attack-free
-    flag process, so every test sees it at its false-alarm rate; any other attacker automaton
-    is scored by the count test only (the interval test's gap laws take the built-in attacks).
+    flag process, so every test sees it at its false-alarm rate; the interval test's law under a
+    forger with ``min_gap > 1`` or any other attacker automaton comes from the flag process of
+    the engine's automaton (``fakeack.detection.gap_bins``).
 
     Parameters
     ----------

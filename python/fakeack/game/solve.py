@@ -144,8 +144,8 @@ def solve_game(
         Offline windows after a triggering alarm, each >= 0.
     attacks : sequence
         The attacker's choices: ``None`` (no attack), any attack object,
-        :class:`fakeack.MimicryAttack` or :class:`fakeack.AttackerAutomaton` (scored by the
-        count test only, see :func:`game_payoff`).
+        :class:`fakeack.MimicryAttack` or :class:`fakeack.AttackerAutomaton` (see
+        :func:`game_payoff`).
     tests : sequence of {"count", "interval"}, optional
         The tests (default both).
     rules : sequence of {"any", "harmful"}, optional
