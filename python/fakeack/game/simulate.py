@@ -17,6 +17,7 @@ from ..attacks.kinds import AttackLike, as_attack, core_attack
 from ..detection.count import alarm_bounds, harmful_bound
 from ..detection.interval_test import cached_interval_test
 from ..detection.probability import KernelTest
+from ..detection.process import flag_process
 from ..detection.rates import paper_min_gap
 from ..model.channels import Channel, ChannelLike, channel_argument, is_paper_channel
 from ..model.system import LinearSystem, compiled
@@ -60,6 +61,8 @@ class GameSimulation:
     """Flag-ACKs that reached the sensor in each run's measured horizon."""
     channel: Channel | None = None
     """The channel played."""
+    burn_in: int = 0
+    """Steps played before the measurement (by default the attack's mixing time, in windows)."""
 
 
 def _ratio_se(num: FloatArray, den: FloatArray) -> tuple[float, float]:
@@ -86,7 +89,7 @@ def simulate_game(
     seed: int | None = None,
     *,
     n_steps: int = 1000,
-    burn_in: int = 0,
+    burn_in: int | None = None,
     beta_bar: float | None = None,
     progress: bool | None = None,
     lam: float | None = None,
@@ -133,9 +136,13 @@ def simulate_game(
     n_steps : int, optional
         Window length (default 1000).
     burn_in : int, optional
-        Steps played (with the policy in the loop) before the measurement starts (default 0); a few
-        fall-back cycles put the measured horizon in the game's stationary regime, which the
-        payoff formula describes.
+        Steps played (with the policy in the loop) before the measurement starts. The default
+        is the attack's mixing time (:meth:`fakeack.FlagProcess.mixing_steps` of the flag
+        process under the attack and without it, the longer), rounded up to whole windows: the
+        attacker's phase, which a long-period attack keeps for 10^4 steps, then follows its
+        long-run law, which the payoff formula assumes. A few fall-back cycles more put the
+        online and offline stretches in their stationary regime too. ``0`` starts measuring at
+        the paper's initial condition. The result's ``burn_in`` states the value used.
     beta_bar : float, optional
         The harmful rule's threshold (default as :func:`solve_game`).
     progress : bool or None
@@ -166,7 +173,6 @@ def simulate_game(
     seed = as_int("seed", required("simulate_game", "seed", seed), minimum=0)
     if seed >= 2**64:
         raise ValueError(f"seed must be below 2**64, got {seed}")
-    burn_in = as_int("burn_in", burn_in, minimum=0)
     att = as_attack(attack)
     if authenticated:
         kept = discard_forgeries(att)
@@ -184,6 +190,11 @@ def simulate_game(
         )
     else:
         kernel = channel_game(system, ch, ratio_, policy, n_steps, beta_bar)
+    if burn_in is None:
+        played = kernel.lam if kernel.channel is None else kernel.channel
+        mixing = max(flag_process(played, kernel.design, a).mixing_steps() for a in (None, att))
+        burn_in = -(-mixing // kernel.n) * kernel.n  # whole windows: the measurement starts one
+    burn_in = as_int("burn_in", burn_in, minimum=0)
     bar = Progress(runs, progress)
     r = kernel.ratio
     try:
@@ -231,6 +242,7 @@ def simulate_game(
         seed,
         out["delivered"],
         ch,
+        burn_in,
     )
 
 
