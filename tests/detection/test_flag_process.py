@@ -113,3 +113,18 @@ def test_a_burn_in_of_the_mixing_time_puts_simulated_windows_in_the_stationary_r
     assert abs(short.detection - p) > 4 * se, (short.detection, p)
     with pytest.raises(ValueError, match="tol"):
         fa.flag_process(0.5, design, attack).mixing_steps(tol=1e-3, max_steps=100)
+
+
+@pytest.mark.parametrize(
+    "attack", [None, fa.PeriodicBlocking(1, 5), fa.FlagInjection(0.01, min_gap=3)], ids=str
+)
+def test_the_banded_window_recursion_is_the_full_count_law(attack):
+    """Without a support check (min_gap = 1) the window's no-alarm mass is the count law's inside
+    the bounds: the banded recursion over (state, age, count) against the full one over (state,
+    count) of count_law."""
+    process = fa.flag_process(0.5, fa.OnlineDesign(2), attack)
+    law = process.count_law(3000)
+    for lo, hi in [(380, 480), (300, 460), (-1, 430), (400, 3001)]:
+        inside = law[max(lo + 1, 0) : min(hi, len(law))].sum()
+        got = process.window_alarm_probability(3000, 1, (lo, hi))
+        assert got == pytest.approx(1.0 - inside, abs=1e-13)

@@ -255,26 +255,35 @@ class FlagProcess:
                 f"{self.n_states * g * n * top:.2g} operations, more than {MAX_LAW_WORK:.0e}"
             )
         D0t, D1t = self._transposed
-        # f[state, age, count]; age capped at g - 1 (g = 1: one age, no gap is short). One sparse
-        # product per step for every (age, count) column.
-        f = np.zeros((self.n_states, g, top))
-        f[:, :, 0] = self._age_law(g).T
+        # f[state, age, count] on the band of counts [a, b) that holds mass (the count of a step
+        # spreads over O(sqrt(k)) values, a fraction of 0..top); age capped at g - 1 (g = 1: one
+        # age, no gap is short). One sparse product per step for every (age, count) column.
         S = self.n_states
+        f = np.zeros((S, g, 1))
+        f[:, :, 0] = self._age_law(g).T
+        a = 0
         for _ in range(n):
-            flat = f.reshape(S, g * top)
-            delivered = (D1t @ flat).reshape(S, g, top)
-            moved = (D0t @ flat).reshape(S, g, top)
-            new = np.zeros_like(f)
+            width = f.shape[2]
+            flat = f.reshape(S, g * width)
+            delivered = (D1t @ flat).reshape(S, g, width)
+            moved = (D0t @ flat).reshape(S, g, width)
+            grown = min(a + width + 1, top) - a  # a count reaching hi leaves: an alarm
+            new = np.zeros((S, g, grown))
             # A delivery at the largest age (a gap of at least g) moves the count up by one;
             # deliveries at a smaller age are short gaps and leave.
-            new[:, 0, 1:] = delivered[:, g - 1, :-1]
+            new[:, 0, 1:] = delivered[:, g - 1, : grown - 1]
             if g > 1:
-                new[:, 1:] += moved[:, :-1]
-            new[:, g - 1] += moved[:, g - 1]
-            f = new
-            if f.sum() < 1e-17:  # every window has alarmed, up to far below rounding
+                new[:, 1:, :width] += moved[:, :-1]
+            new[:, g - 1, :width] += moved[:, g - 1]
+            mass = new.sum(axis=(0, 1))
+            live = np.flatnonzero(mass > 1e-24)  # dropping the rest moves the result by < 1e-17
+            if live.size == 0:  # every window has alarmed, up to far below rounding
+                f = np.zeros((S, g, 0))
                 break
-        left = f.sum(axis=(0, 1))  # P(no alarm so far, N = c), c < top
+            f = new[:, :, live[0] : live[-1] + 1]
+            a += int(live[0])
+        left = np.zeros(top)  # P(no alarm so far, N = c), c < top
+        left[a : a + f.shape[2]] = f.sum(axis=(0, 1))
         quiet = left[max(lo + 1, 0) :]
         if harm is None:
             return float(min(max(1.0 - quiet.sum(), 0.0), 1.0))
