@@ -42,6 +42,7 @@ from .attacks import (
 )
 from .detection import (
     Detection,
+    DetectionCurves,
     DetectionRates,
     FlagCount,
     FlagProcess,
@@ -52,6 +53,7 @@ from .detection import (
     delivered_flag_rate,
     detect_attack,
     detect_intervals,
+    detection_curves,
     detection_probability,
     detection_rates,
     estimate_beta,
@@ -99,6 +101,7 @@ from .montecarlo import (
     simulate,
 )
 from .plots import (
+    plot_detection_curves,
     plot_frontiers,
     plot_game,
 )
@@ -119,6 +122,7 @@ __all__ = [
     "random_blocking_sweep",
     "rate_matching_attack",
     "Detection",
+    "DetectionCurves",
     "DetectionRates",
     "delivered_flag_rate",
     "detect_attack",
@@ -131,6 +135,7 @@ __all__ = [
     "IntervalLaw",
     "IntervalTest",
     "detect_intervals",
+    "detection_curves",
     "detection_probability",
     "flag_count_moments",
     "flag_interval_law",
@@ -151,6 +156,7 @@ __all__ = [
     "Stackelberg",
     "StealthyFrontier",
     "game_payoff",
+    "plot_detection_curves",
     "plot_frontiers",
     "plot_game",
     "simulate_game",

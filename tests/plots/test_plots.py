@@ -67,8 +67,12 @@ def game_inputs(paper):
         for family in ("periodic", "random")
     ]
     families = attack_families(paper, PAPER_LAM, PAPER_RATIO, 3.0, 1.0, betas=np.linspace(0.0, 1.0, 11))
+    curves = fa.detection.detection_curves(
+        PAPER_LAM, 2, [None, fa.PeriodicBlocking(1, 5), fa.FlagInjection(0.2)], [500, 1000]
+    )
     return {
         "solution": solution,
+        "curves": curves,
         "frontiers": frontiers,
         "j_offline": solution.j_offline,
         "families": families,
@@ -96,6 +100,11 @@ CASES = {
         lambda d, ax: plots.plot_stationary(d["states"], d["pi"], ax, r=1),
     ),
     "plot_game": ("game_inputs", 1, lambda d, ax: fa.plot_game(d["solution"], ax)),
+    "plot_detection_curves": (
+        "game_inputs",
+        3,
+        lambda d, ax: plots.plot_detection_curves(d["curves"], ax=ax),
+    ),
     "plot_frontiers": ("game_inputs", 2, lambda d, ax: fa.plot_frontiers(d["frontiers"], d["j_offline"], ax)),
     "plot_attack_families": ("game_inputs", 2, lambda d, ax: plots.plot_attack_families(d["families"], ax)),
     "plot_beta_bar": ("grid_inputs", 1, lambda d, ax: plots.plot_beta_bar(d["ds"], "paper", ax)),

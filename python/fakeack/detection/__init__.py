@@ -16,6 +16,7 @@ detection_probability part is the next to move to a module of its own.)
 """
 
 from .count import ALTERNATIVES, Detection, count_alarm_bounds, detect_attack, harmful_count_bound
+from .curves import DetectionCurves, detection_curves
 from .flags import FlagRates, delivered_flag_rate, estimate_beta, flag_interval_moments, flag_rates
 from .interval_test import IntervalDetection, IntervalTest, detect_intervals, interval_test
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
@@ -44,6 +45,8 @@ __all__ = [
     "flag_count_moments",
     "TESTS",
     "detection_probability",
+    "DetectionCurves",
+    "detection_curves",
     "DetectionRates",
     "detection_rates",
     "FlagProcess",

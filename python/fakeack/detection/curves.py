@@ -1,0 +1,125 @@
+"""Detection probability against the window length, per test and attack (:func:`detection_curves`),
+for the figure of :func:`fakeack.plots.plot_detection_curves`."""
+
+from __future__ import annotations
+
+import warnings
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._internal.types import FloatArray, IntArray
+from .._internal.validate import as_int, as_probability
+from ..attacks.automata import AttackerAutomaton, MimicryAttack
+from ..attacks.kinds import AttackLike
+from ..model.channels import ChannelLike
+from ..model.schedules import OnlineDesign
+from .interval_test import MIN_EXPECTED_FLAGS
+from .probability import detection_probability
+from .process import flag_process
+
+__all__ = [
+    "DetectionCurves",
+    "detection_curves",
+]
+
+#: The tests a curve may show: the two flag-timing tests and the support check alone.
+CURVE_TESTS = ("count", "interval", "support")
+
+
+@dataclass(frozen=True)
+class DetectionCurves:
+    """The result of :func:`detection_curves`."""
+
+    n_steps: IntArray
+    """Window lengths (steps)."""
+    tests: tuple[str, ...]
+    attacks: tuple[object, ...]
+    probability: FloatArray
+    """``probability[i, j, k]``: test i, attack j, window k. NaN where the test is not computed:
+    the interval test on a window with fewer than 100 expected flag-ACKs (it refuses them)."""
+    alpha: float
+    support: bool
+    """Whether the count and interval tests ran with the support check beside them."""
+
+
+def detection_curves(
+    channel: ChannelLike,
+    z0: int,
+    attacks: Sequence[AttackLike | MimicryAttack | AttackerAutomaton],
+    n_steps: Sequence[int],
+    alpha: float = 0.01,
+    tests: Sequence[str] = CURVE_TESTS,
+    mu: float = 1.0,
+    *,
+    support: bool = True,
+) -> DetectionCurves:
+    r"""The detection probability per window (:func:`fakeack.detection_probability`) of each test
+    and attack over a range of window lengths.
+
+    Parameters
+    ----------
+    channel : Channel or float
+        The channel (a float: the paper's, of that low-power arrival probability).
+    z0 : int
+        Memory length of the event detector.
+    attacks : sequence
+        ``None`` (the false-alarm rate) or any attack, :class:`fakeack.MimicryAttack` or
+        :class:`fakeack.AttackerAutomaton`.
+    n_steps : sequence of int
+        Window lengths, each >= 1.
+    alpha : float, optional
+        False-alarm level of the count and interval tests (default 0.01).
+    tests : sequence of {"count", "interval", "support"}, optional
+        The tests (default all three; ``"support"`` is the support check alone).
+    mu : float, optional
+        Probability of the z0-bit memory at each step (default 1).
+    support : bool, optional
+        Whether the count and interval tests run with the support check beside them (default
+        True). The interval test's combination treats the two as independent; one
+        ``UserWarning`` says so where that is not pinned within 1e-4.
+
+    Returns
+    -------
+    DetectionCurves
+    """
+    tests_ = tuple(tests)
+    for t in tests_:
+        if t not in CURVE_TESTS:
+            raise ValueError(f"tests: each must be one of {CURVE_TESTS}, got {t!r}")
+    if not tests_:
+        raise ValueError("tests must not be empty")
+    windows = np.array([as_int("n_steps", n, minimum=1, maximum=10**7) for n in n_steps], dtype=np.int64)
+    if windows.size == 0:
+        raise ValueError("n_steps must not be empty")
+    attacks_ = tuple(attacks)
+    if not attacks_:
+        raise ValueError("attacks must not be empty")
+    level = as_probability("alpha", alpha)
+    if not isinstance(support, bool):
+        raise TypeError(f"support must be True or False, got {support!r}")
+    rate = flag_process(channel, OnlineDesign(z0, mu)).rate
+    out = np.full((len(tests_), len(attacks_), len(windows)), np.nan)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", UserWarning)
+        for i, test in enumerate(tests_):
+            for k, n in enumerate(windows):
+                if test == "interval" and n * rate < MIN_EXPECTED_FLAGS:
+                    continue  # the interval test refuses such windows
+                for j, a in enumerate(attacks_):
+                    out[i, j, k] = detection_probability(
+                        channel, z0, a, int(n), level, test, mu=mu, support=support
+                    )
+    combined = [w for w in caught if "combined as independent" in str(w.message)]
+    for w in caught:
+        if w not in combined:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    if combined:
+        warnings.warn(
+            f"detection_curves: {len(combined)} interval-test point{'s' if len(combined) > 1 else ''} "
+            f"combine the test and the support check as independent ({combined[0].message})",
+            UserWarning,
+            stacklevel=2,
+        )
+    return DetectionCurves(windows, tests_, attacks_, out, level, support)
