@@ -8,6 +8,7 @@
 from __future__ import annotations
 
 import sys
+import warnings
 from fractions import Fraction
 
 import fakeack as fa
@@ -56,12 +57,15 @@ def detection() -> None:
 
 
 def frontier() -> None:
-    """The best attack of each family at a detection probability of at most 0.02 (alpha = 0.01)."""
+    """The best attack of each family at a detection probability of at most 0.02 (alpha = 0.01),
+    with the support check beside each test (the default)."""
     for n in (1000, 10_000):
         for test in ("count", "interval"):
             cells = []
             for family in FAMILIES:
-                f = fa.stealthy_frontier(SYSTEM, LAM, Z0, n, 0.01, test, family, 0.02, t_max=60)
+                with warnings.catch_warnings():  # the interval column's naive forgers: see the docs
+                    warnings.simplefilter("ignore", UserWarning)
+                    f = fa.stealthy_frontier(SYSTEM, LAM, Z0, n, 0.01, test, family, 0.02, t_max=60)
                 cells.append(f"{f.j:.4f} at {f.detection:.4f}: {f.attack}")
             print(f"| {n} | {test} | " + " | ".join(cells) + " |", flush=True)
 
@@ -98,13 +102,47 @@ def responses() -> None:
         (fa.SensorPolicy("interval", 0.01, 4), fa.rate_matching_attack(LAM, Z0, 0.8)),
         (fa.SensorPolicy("interval", 0.01, 4, "harmful"), fa.rate_matching_attack(LAM, Z0, 0.8)),
         (fa.SensorPolicy("interval", 0.01, 4), fa.PeriodicBlocking(2, 3)),
+        # The careful attacker: rate matching that never forges within z0 steps of the last
+        # flag-ACK (the support check never sees it), and mimicry.
+        (fa.SensorPolicy("count", 0.01, 4), fa.rate_matching_attack(LAM, Z0, 0.8, min_gap=Z0 + 1)),
+        (fa.SensorPolicy("count", 0.01, 4, "harmful"), fa.rate_matching_attack(LAM, Z0, 0.8, min_gap=Z0 + 1)),
+        (fa.SensorPolicy("interval", 0.01, 4), fa.rate_matching_attack(LAM, Z0, 0.8, min_gap=Z0 + 1)),
+        (fa.SensorPolicy("count", 0.01, 4), fa.MimicryAttack()),
+        (fa.SensorPolicy("interval", 0.01, 4), fa.MimicryAttack()),
     ]
     for pol, att in cases:
         p = fa.game_payoff(SYSTEM, LAM, RATIO, pol, att, 1000)
         print(f"| {pol} | {att} | {p.j_attack:.4f} | {p.detection:.3f} | {p.j:.4f} |")
 
 
+def curves() -> None:
+    """Detection probability per window against the window length (the docs page's figure)."""
+    c = fa.detection_curves(LAM, Z0, CURVE_ATTACKS, CURVE_WINDOWS)
+    for i, test in enumerate(c.tests):
+        for j, a in enumerate(c.attacks):
+            cells = " | ".join("-" if x != x else f"{x:.4f}" for x in c.probability[i, j])
+            print(f"| {test} | {'no attack' if a is None else a} | {cells} |")
+
+
+#: The attacks and windows of the detection curves.
+CURVE_ATTACKS = [
+    None,
+    fa.PeriodicBlocking(1, 5),
+    fa.rate_matching_attack(LAM, Z0, 0.2),
+    fa.rate_matching_attack(LAM, Z0, 0.2, min_gap=Z0 + 1),
+    fa.rate_matching_attack(LAM, Z0, 0.975, min_gap=Z0 + 1),
+    fa.MimicryAttack(),
+]
+CURVE_WINDOWS = [200, 500, 1000, 2000, 5000, 10_000]
+
+
 if __name__ == "__main__":
-    tables = {"detection": detection, "frontier": frontier, "windows": windows, "responses": responses}
+    tables = {
+        "detection": detection,
+        "frontier": frontier,
+        "windows": windows,
+        "responses": responses,
+        "curves": curves,
+    }
     for name in sys.argv[1:] or list(tables):
         tables[name]()

@@ -108,3 +108,37 @@ def test_the_extended_chain_is_refused_beyond_its_size():
     process = fa.flag_process(0.5, fa.OnlineDesign(2))
     with pytest.raises(ValueError, match="edges: the interval test's bins"):
         bin_rates(process, np.array([1, 10**7]))
+
+
+def test_the_bin_moments_on_a_bursty_channel_are_the_protocols():
+    """On a Gilbert-Elliott channel successive gaps are correlated and the gap walk does not
+    apply. Windows of the protocol written from its description (the channel moves after each
+    step; a high-power packet always arrives, a low one with the state's probability) against
+    the flag process's bin means n r and covariances n Sigma."""
+    p, q, good, bad = 0.1, 0.3, 0.9, 0.2
+    n, runs, burn = 2000, 20_000, 200
+    edges = np.array([1, 4, 6, 9, 14])
+    rng = np.random.default_rng(12)
+    state = rng.random(runs) < p / (p + q)  # True: bad, from the stationary law
+    high = np.ones(runs, bool)
+    z = np.zeros(runs, int)
+    age = np.zeros(runs, int)
+    counts = np.zeros((runs, len(edges)))
+    for k in range(burn + n):
+        arrive = high | (rng.random(runs) < np.where(state, bad, good))
+        z = np.where(arrive, 0, z + 1)
+        flag = ~arrive & (z >= 2)
+        z = np.where(flag, 0, z)
+        age += 1
+        if k >= burn:
+            b = np.searchsorted(edges, age, side="right") - 1
+            np.add.at(counts, (np.flatnonzero(flag), b[flag]), 1.0)
+        age = np.where(flag, 0, age)
+        high = flag
+        state = np.where(state, rng.random(runs) >= q, rng.random(runs) < p)
+    r, sigma = bin_rates(fa.flag_process(fa.GilbertElliott(p, q, good, bad), fa.OnlineDesign(2)), edges)
+    mean, cov = counts.mean(axis=0), np.cov(counts.T)
+    assert np.all(np.abs(mean - n * r) < 4 * np.sqrt(np.diag(cov) / runs) + 0.02), (mean, n * r)
+    # Covariances: within 6% of the diagonal's scale (the window's edges add O(1) terms).
+    scale = np.sqrt(np.outer(np.diag(cov), np.diag(cov)))
+    assert np.all(np.abs(cov - n * sigma) < 0.06 * scale), (cov, n * sigma)
