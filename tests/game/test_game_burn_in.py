@@ -16,12 +16,15 @@ def system():
 
 def test_a_long_period_attack_needs_its_mixing_time(system):
     """PeriodicBlocking(8, 59) keeps its phase for about 1.7e4 steps. With no fall-back every window
-    is tested: after the default burn-in the alarm rate is the stationary detection probability;
-    measured from the paper's initial condition it is not."""
+    is tested: after the default burn-in the alarm rate is the stationary window's exact alarm
+    probability (the count law of the flag process); measured from the paper's initial condition
+    it is not."""
     attack = fa.PeriodicBlocking(8, 59)
     policy = fa.SensorPolicy("count", 0.01, 0)
-    mixing = fa.flag_process(0.5, fa.OnlineDesign(2), attack).mixing_steps()
-    d = fa.detection_probability(0.5, 2, attack, 1000, 0.01)
+    process = fa.flag_process(0.5, fa.OnlineDesign(2), attack)
+    mixing = process.mixing_steps()
+    bounds = fa.detection.count_alarm_bounds(0.5, 2, 1000, 0.01, "two-sided")
+    d = process.window_alarm_probability(1000, 1, bounds)
     g = fa.simulate_game(system, 0.5, "1/7", policy, attack, 4000, 2000, seed=2)
     assert g.burn_in == 1000 * math.ceil(mixing / 1000) and g.burn_in > 10_000
     assert abs(g.alarm_rate - d) < 4 * g.alarm_stderr, (g.alarm_rate, g.alarm_stderr, d)

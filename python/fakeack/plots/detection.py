@@ -36,7 +36,7 @@ def plot_detection_curves(
     Parameters
     ----------
     curves : DetectionCurves
-        From :func:`fakeack.detection.detection_curves`.
+        From :func:`fakeack.detection_curves`.
     labels : sequence of str, optional
         One legend label per attack (default ``str`` of each, "no attack" for ``None``).
     ax : matplotlib.axes.Axes or sequence of Axes, optional
