@@ -454,6 +454,7 @@ fn bench_game(c: &mut Criterion) {
             design,
             offline: offline_schedule(Ratio::new(1, 7).expect("ratio")).expect("pattern"),
             attack: Some(attack),
+            automaton: None,
             policy: policy.clone(),
             window: 1000,
             horizon,
