@@ -150,7 +150,7 @@ def simulate_game(
         works; giving both is a ``TypeError``.
     authenticated : bool, optional
         Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): only
-        the attack's blocking part is played (:func:`fakeack.discard_forgeries`).
+        the attack's blocking part is played (``fakeack.attacks.discard_forgeries``).
 
     Returns
     -------
