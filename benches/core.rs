@@ -26,7 +26,8 @@
 //! * `game/..`: `LinearSystem::simulate_game`, the closed loop with the sensor's count test in it
 //!   (bounds at about 2.6 standard deviations of the attack-free count of a 1000-step window, two
 //!   offline windows after any alarm; offline schedule 1/7), under the attack "first 1 of every
-//!   5" and rate matching (β = 0.2, γ = 0.0365); throughput in simulated steps;
+//!   5" and rate matching (β = 0.2, γ = 0.0365) (the bit-sliced kernel), and under mimicry (an
+//!   attacker automaton, the lane kernel); throughput in simulated steps;
 //! * `markov/..`: `engine::markov::beta_sweep`, every r/t under `GilbertElliott(0.1, 0.1, 1, 0)`
 //!   with the design that meets the budget 1/7 there (z0 = 2, μ = 0.5785), t_max = 60 and 1000.
 //!
@@ -52,7 +53,7 @@ use fakeack::schedules::{offline_schedule, Ratio};
 use fakeack::spectral::spectral_radius;
 use fakeack::LinearSystem;
 use fakeack::{stationary, sweep, Attack};
-use fakeack::{Attacker, Channel, Engine, PowerSchedule, Scenario};
+use fakeack::{Attacker, AttackerAutomaton, Channel, Engine, PowerSchedule, Scenario};
 
 /// The paper's example: A = 1.2, C = 0.7, Q = R = 0.8, λ = 0.5.
 const LAM: f64 = 0.5;
@@ -443,9 +444,16 @@ fn bench_game(c: &mut Criterion) {
     };
     let rate_matching =
         Attack::injection(0.0365, Some(Attack::random(0.2).expect("beta"))).expect("gamma");
-    for (name, attack) in [
-        ("count_periodic1/5", Attack::periodic(1, 5).expect("r < t")),
-        ("count_rate_matching0.2", rate_matching),
+    let mimicry =
+        AttackerAutomaton::mimicry(&Channel::bernoulli(LAM).expect("lam"), design).expect("design");
+    for (name, attack, automaton) in [
+        (
+            "count_periodic1/5",
+            Some(Attack::periodic(1, 5).expect("r < t")),
+            None,
+        ),
+        ("count_rate_matching0.2", Some(rate_matching), None),
+        ("count_mimicry", None, Some(mimicry)),
     ] {
         let (runs, horizon) = (8_192u64, 20_000u64);
         let cfg = GameConfig {
@@ -453,7 +461,8 @@ fn bench_game(c: &mut Criterion) {
             channel: None,
             design,
             offline: offline_schedule(Ratio::new(1, 7).expect("ratio")).expect("pattern"),
-            attack: Some(attack),
+            attack,
+            automaton,
             policy: policy.clone(),
             window: 1000,
             horizon,

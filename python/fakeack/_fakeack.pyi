@@ -246,4 +246,6 @@ def simulate_game(
     channel_high: list[float] | None = None,
     offline_pattern: list[bool] | None = None,
     min_gap: int = 0,
+    automaton: tuple[list[list[tuple[float, bool, int]]], list[list[tuple[float, bool, int]]], int]
+    | None = None,
 ) -> dict[str, Any]: ...

@@ -12,10 +12,13 @@ import numpy as np
 from .. import _fakeack
 from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability
-from ..attacks.kinds import Attack, AttackLike, as_attack, core_attack
+from ..attacks.automata import AttackerAutomaton, MimicryAttack
+from ..attacks.kinds import AttackLike
+from ..model.channels import BernoulliChannel
 from ..model.schedules import OnlineDesign, check_online
+from ..montecarlo._automaton import SimAttack, as_sim_attack, kernel_attack
 from .count import alarm_bounds
-from .flags import delivered_flag_rate, estimate_beta
+from .flags import delivered_flag_rate, estimate_beta, flag_rates
 from .interval_test import cached_interval_test
 from .probability import KernelTest, check_test
 
@@ -36,7 +39,7 @@ def paper_min_gap(design: OnlineDesign) -> int:
 def simulate_windows(
     lam: float,
     design: OnlineDesign,
-    attack: Attack | None,
+    attack: SimAttack | None,
     n: int,
     runs: int,
     seed: int,
@@ -51,7 +54,8 @@ def simulate_windows(
     """Alarms (0/1) and delivered flag-ACKs of ``runs`` simulated windows of ``n`` steps, one per run,
     after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back).
     ``support``: the window alarms at the support check too (the gap across its start counts);
-    ``test="support"`` is the support check alone."""
+    ``test="support"`` is the support check alone. Any attacker automaton plays move by move (a
+    mimicry attacker without its own channel or design runs ``lam`` and ``design``)."""
     from .._internal.progress import Progress
     from .flags import any_system
 
@@ -73,6 +77,7 @@ def simulate_windows(
             None,
             0,
         )
+    core, automaton = kernel_attack(attack, BernoulliChannel(lam), design)
     bar = Progress(runs, progress)
     burn_in = -(-burn_in // n) * n  # whole windows, so that the measured window is one window
     try:
@@ -83,7 +88,7 @@ def simulate_windows(
             2,
             design.z0,
             design.mu,
-            core_attack(attack),
+            core,
             *args,
             n,
             n,
@@ -92,6 +97,7 @@ def simulate_windows(
             seed,
             bar,
             min_gap=paper_min_gap(design) if support else 0,
+            automaton=automaton,
         )
     finally:
         bar.close()
@@ -111,7 +117,8 @@ class DetectionRates:
     window in which fewer than one flag-ACK is expected without attack, where it is undefined."""
     beta_hat_std: float
     beta: float
-    """The attack's budget (the blocking part's, for an injection)."""
+    """The attack's budget (the blocking part's, for an injection; for an attacker automaton, the
+    long-run fraction of the genuine flag-ACKs it blocks)."""
     runs: int
     n_steps: int
     alpha: float
@@ -128,7 +135,7 @@ class DetectionRates:
 def detection_rates(
     lam: float,
     z0: int,
-    attack: AttackLike,
+    attack: AttackLike | MimicryAttack | AttackerAutomaton,
     n_steps: int = 1000,
     runs: int = 2000,
     mu: float = 1.0,
@@ -162,7 +169,10 @@ def detection_rates(
     attack : attack, (r, t) or str
         The attack to detect: :class:`fakeack.PeriodicBlocking`, :class:`fakeack.MaskBlocking`,
         :class:`fakeack.RandomBlocking` or :class:`fakeack.FlagInjection` (its ``beta`` is that of
-        its blocking part), or a spelling such as ``"1/5"`` or ``"inject:0.04+random:0.2"``.
+        its blocking part), or a spelling such as ``"1/5"`` or ``"inject:0.04+random:0.2"``; or
+        any attacker automaton, played move by move: :class:`fakeack.MimicryAttack` (without its
+        own channel or design, the simulated ones: the sensor then sees the attack-free flag
+        law), :class:`fakeack.AttackerAutomaton`.
     n_steps : int, optional
         Observation window in steps (default 1000).
     runs : int, optional
@@ -196,7 +206,7 @@ def detection_rates(
     from .count import check_alternative
 
     lam, design = check_online(lam, z0, mu)
-    att = as_attack(attack)
+    att = as_sim_attack(attack)
     if att is None:
         raise ValueError("attack: give the attack whose detection rate you want, e.g. (1, 5)")
     n = as_int("n_steps", n_steps, minimum=1)
@@ -232,7 +242,11 @@ def detection_rates(
     if n * delivered_flag_rate(lam, design.z0, None, design.mu) >= 1.0 - 1e-12:
         betas = np.array([estimate_beta(int(c), n, lam, design.z0, design.mu) for c in delivered])
         beta_mean, beta_std = float(betas.mean()), float(betas.std(ddof=1))
-    beta = float(att.beta)
+    if isinstance(att, (MimicryAttack, AttackerAutomaton)):
+        rates = flag_rates(lam, design.z0, att, design.mu)
+        beta = float(rates.blocked / rates.sent)
+    else:
+        beta = float(att.beta)
     return DetectionRates(
         flagged["clean"],
         flagged["attacked"],

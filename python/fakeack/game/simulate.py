@@ -12,8 +12,8 @@ from .._internal.progress import Progress
 from .._internal.types import FloatArray, IntArray, RatioLike
 from .._internal.validate import as_int, as_probability
 from ..attacks._args import required
-from ..attacks.automata import AttackerAutomaton, discard_forgeries
-from ..attacks.kinds import AttackLike, as_attack, core_attack
+from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeries
+from ..attacks.kinds import AttackLike
 from ..detection.count import alarm_bounds, harmful_bound
 from ..detection.interval_test import cached_interval_test
 from ..detection.probability import KernelTest
@@ -21,6 +21,7 @@ from ..detection.process import flag_process
 from ..detection.rates import paper_min_gap
 from ..model.channels import Channel, ChannelLike, channel_argument, is_paper_channel
 from ..model.system import LinearSystem, compiled
+from ..montecarlo._automaton import as_sim_attack, kernel_attack
 from ._channel import PlayedGame, channel_game
 from .payoff import _Setting
 from .policies import SensorPolicy
@@ -83,7 +84,7 @@ def simulate_game(
     channel: ChannelLike | None = None,
     ratio: RatioLike | None = None,
     policy: SensorPolicy | None = None,
-    attack: AttackLike = None,
+    attack: AttackLike | MimicryAttack | AttackerAutomaton = None,
     horizon: int | None = None,
     runs: int | None = None,
     seed: int | None = None,
@@ -126,7 +127,11 @@ def simulate_game(
     policy : SensorPolicy
         The sensor's policy.
     attack : None or attack
-        The attack, kept throughout.
+        The attack, kept throughout, online and offline: a built-in attack, or any attacker
+        automaton (:class:`fakeack.MimicryAttack`, which without its own channel or design runs
+        the simulated ones, an :class:`fakeack.AttackerAutomaton`, a
+        :class:`fakeack.FlagInjection` with ``min_gap > 1``), which the kernel plays move by move
+        as :func:`fakeack.simulate` does.
     horizon : int
         Measured steps per run.
     runs : int
@@ -152,7 +157,7 @@ def simulate_game(
         works; giving both is a ``TypeError``.
     authenticated : bool, optional
         Whether the sensor authenticates flag-ACKs, rejecting forged ones (default False): only
-        the attack's blocking part is played.
+        the attack's blocking part is played (``fakeack.attacks.discard_forgeries``).
 
     Returns
     -------
@@ -173,11 +178,7 @@ def simulate_game(
     seed = as_int("seed", required("simulate_game", "seed", seed), minimum=0)
     if seed >= 2**64:
         raise ValueError(f"seed must be below 2**64, got {seed}")
-    att = as_attack(attack)
-    if authenticated:
-        kept = discard_forgeries(att)
-        assert not isinstance(kept, AttackerAutomaton)  # a built-in attack stays built-in
-        att = kept
+    att = as_sim_attack(attack)
     if is_paper_channel(ch):
         setting = _Setting.make(system, as_probability(name, float(ch.low[0])), ratio_, n_steps, beta_bar)
         kernel = PlayedGame(
@@ -190,11 +191,14 @@ def simulate_game(
         )
     else:
         kernel = channel_game(system, ch, ratio_, policy, n_steps, beta_bar)
+    if authenticated:
+        att = discard_forgeries(att, channel=ch, design=kernel.design)
     if burn_in is None:
         played = kernel.lam if kernel.channel is None else kernel.channel
         mixing = max(flag_process(played, kernel.design, a).mixing_steps() for a in (None, att))
         burn_in = -(-mixing // kernel.n) * kernel.n  # whole windows: the measurement starts one
     burn_in = as_int("burn_in", burn_in, minimum=0)
+    core, automaton = kernel_attack(att, ch, kernel.design)
     bar = Progress(runs, progress)
     r = kernel.ratio
     try:
@@ -205,7 +209,7 @@ def simulate_game(
             r.denominator,
             kernel.design.z0,
             kernel.design.mu,
-            core_attack(att),
+            core,
             *kernel.policy,
             kernel.n,
             horizon,
@@ -215,6 +219,7 @@ def simulate_game(
             bar,
             **kernel.channel_args(),
             min_gap=kernel.min_gap,
+            automaton=automaton,
         )
     finally:
         bar.close()

@@ -5,7 +5,8 @@ two-state Markov channels whose high-power packets always arrive, with ``Offline
 or an online design and the built-in attacks; everything else (another Markov channel, an
 offline pattern, mimicry, an attacker automaton, an injection with ``min_gap > 1``, state mode
 under a Markov channel) goes to the plain per-run Monte Carlo of any automaton
-(``_fakeack.simulate_automaton``), in covariance or state mode.
+(``_fakeack.simulate_automaton``), in covariance or state mode. The closed-loop game kernel
+(``_fakeack.simulate_game``) takes the same automaton tables (:func:`kernel_attack`).
 """
 
 from __future__ import annotations
@@ -13,8 +14,8 @@ from __future__ import annotations
 from typing import Any, cast
 
 from .. import _fakeack
-from ..attacks.automata import AttackerAutomaton, MimicryAttack, as_automaton
-from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack
+from ..attacks.automata import AttackerAutomaton, MimicryAttack, Transition, as_automaton
+from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack, core_attack
 from ..model.channels import Channel, is_paper_channel
 from ..model.schedules import OfflineSchedule, OnlineDesign
 
@@ -22,6 +23,29 @@ from ..model.schedules import OfflineSchedule, OnlineDesign
 MAX_OFFLINE_PERIOD = 10_000_000
 
 SimAttack = Attack | MimicryAttack | AttackerAutomaton
+#: An attacker automaton as the compiled kernels take it: per state the "flag" and the "quiet"
+#: transitions, then the start state.
+CoreAutomaton = tuple[list[list[Transition]], list[list[Transition]], int]
+
+
+def core_automaton(att: SimAttack | None, ch: Channel, design: OnlineDesign | None) -> CoreAutomaton:
+    """The compiled kernels' table of any attack; a mimicry attacker without its own channel or
+    design runs ``ch`` and ``design``, the simulation's."""
+    auto = as_automaton(att, channel=ch, design=design)
+    return [list(ev) for ev in auto.flag], [list(ev) for ev in auto.quiet], auto.start
+
+
+def kernel_attack(
+    att: SimAttack | None, ch: Channel, design: OnlineDesign
+) -> tuple[_fakeack.Attack | None, CoreAutomaton | None]:
+    """The closed-loop game kernel's attack arguments ``(attack, automaton)``: a built-in attack
+    as itself, and as an automaton table what only an automaton writes (mimicry, an
+    :class:`fakeack.AttackerAutomaton`, an injection with ``min_gap > 1``)."""
+    if isinstance(att, (MimicryAttack, AttackerAutomaton)) or (
+        isinstance(att, FlagInjection) and att.min_gap > 1
+    ):
+        return None, core_automaton(att, ch, design)
+    return core_attack(att), None
 
 
 def schedule_argument(sched: object) -> OfflineSchedule | OnlineDesign:
@@ -35,13 +59,17 @@ def schedule_argument(sched: object) -> OfflineSchedule | OnlineDesign:
     return sched
 
 
+def as_sim_attack(attack: object) -> SimAttack | None:
+    """Any attack as an object (``None``: no attack): an automaton as it is, the rest by
+    ``as_attack``, which validates any object."""
+    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
+        return attack
+    return as_attack(cast("AttackLike", attack))
+
+
 def attack_argument(attack: object, sched: OfflineSchedule | OnlineDesign) -> SimAttack | None:
     """The attack as an object (``None``: no attack); an offline schedule takes none."""
-    att: SimAttack | None
-    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
-        att = attack
-    else:
-        att = as_attack(cast("AttackLike", attack))  # as_attack validates any object
+    att = as_sim_attack(attack)
     if isinstance(sched, OfflineSchedule) and att is not None:
         raise ValueError("attack: an offline schedule ignores ACKs, so an attack has no effect")
     return att
@@ -79,11 +107,10 @@ def run_automaton(
             raise ValueError(f"sched: an offline period of {len(pattern)} steps exceeds {MAX_OFFLINE_PERIOD}")
         offline = [bool(x) for x in pattern]
         z0, mu = 1, 1.0
-        auto = as_automaton(None)
+        flag, quiet, start = core_automaton(None, ch, None)
     else:
         z0, mu = sched.z0, sched.mu
-        # Mimicry without its own channel or design runs this simulation's.
-        auto = as_automaton(att, channel=ch, design=sched)
+        flag, quiet, start = core_automaton(att, ch, sched)
     return _fakeack.simulate_automaton(
         core,
         ch.P.tolist(),
@@ -92,9 +119,9 @@ def run_automaton(
         z0,
         mu,
         offline,
-        [list(ev) for ev in auto.flag],
-        [list(ev) for ev in auto.quiet],
-        auto.start,
+        flag,
+        quiet,
+        start,
         horizon,
         runs,
         seed,

@@ -15,7 +15,7 @@ use crate::engine::{Attacker, AttackerAutomaton, Channel, Engine, Move, PowerSch
 use crate::{Attack, OnlineDesign};
 
 /// One state's moves: (probability, deliver, next state).
-type Moves = Vec<Vec<(f64, bool, usize)>>;
+pub(super) type Moves = Vec<Vec<(f64, bool, usize)>>;
 
 /// The virtual system of the mimicry attacker: (P, low, high, z0, mu).
 type Virtual = (Vec<Vec<f64>>, Vec<f64>, Vec<f64>, u64, f64);
@@ -32,7 +32,7 @@ pub(crate) struct PyEngine {
     inner: Engine,
 }
 
-fn moves(lists: Moves) -> Vec<Vec<Move>> {
+pub(super) fn moves(lists: Moves) -> Vec<Vec<Move>> {
     lists
         .into_iter()
         .map(|l| {

@@ -9,8 +9,10 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 use super::attacks::{attack_of, PyAttack};
 use super::design;
+use super::engine::{moves, Moves};
 use super::model::PySystem;
 use super::montecarlo::run_interruptible;
+use crate::engine::AttackerAutomaton;
 use crate::error::Error;
 use crate::montecarlo::game::{Detector, GameConfig, MarkovChannel, Policy};
 use crate::schedule::{offline_schedule, Ratio};
@@ -121,9 +123,11 @@ fn rename(e: Error, pattern_given: bool) -> Error {
 /// i.i.d. channel of `lam`; `lam` is then ignored). `offline_pattern`: the offline schedule's
 /// period (first symbol = the first step of an offline stretch) instead of the pattern of p/q.
 /// `min_gap`: the support check of a testing policy (0 or 1: none), an alarm at any gap between
-/// flag-ACKs that reach the sensor shorter than it.
+/// flag-ACKs that reach the sensor shorter than it. `automaton`: an attacker automaton
+/// `(flag, quiet, start)` (each state's moves (probability, deliver, next state)) instead of
+/// `attack`, run on the lane kernel.
 #[pyfunction]
-#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None, min_gap=0))]
+#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None, min_gap=0, automaton=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate_game<'py>(
     py: Python<'py>,
@@ -153,7 +157,16 @@ pub(crate) fn simulate_game<'py>(
     channel_high: Option<Vec<f64>>,
     offline_pattern: Option<Vec<bool>>,
     min_gap: i64,
+    automaton: Option<(Moves, Moves, usize)>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    if attack.is_some() && automaton.is_some() {
+        return Err(PyValueError::new_err(
+            "automaton: give either attack or automaton, not both",
+        ));
+    }
+    let automaton = automaton
+        .map(|(flag, quiet, start)| AttackerAutomaton::new(moves(flag), moves(quiet), start))
+        .transpose()?;
     let ratio = Ratio::new(p, q)?;
     let given = offline_pattern.is_some();
     let offline = match offline_pattern {
@@ -166,6 +179,7 @@ pub(crate) fn simulate_game<'py>(
         design: design(z0, mu)?,
         offline,
         attack: attack_of(attack),
+        automaton,
         policy: policy_of(
             kind,
             lo,

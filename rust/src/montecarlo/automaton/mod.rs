@@ -66,7 +66,7 @@ use crate::system::LinearSystem;
 mod kernel;
 #[cfg(test)]
 mod state_tests;
-mod tables;
+pub(super) mod tables;
 #[cfg(test)]
 mod tests;
 

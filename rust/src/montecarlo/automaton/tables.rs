@@ -5,6 +5,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::{Attacker, AutomatonConfig, Sensor, Transition};
+use crate::engine::AttackerAutomaton;
 use crate::error::{Error, Result};
 use crate::montecarlo::state::StateModel;
 use crate::montecarlo::{Mode, MAX_HORIZON, MAX_RECORDED_RUNS};
@@ -46,7 +47,7 @@ pub(super) struct Entry {
 
 /// Alias tables of several distributions over values, stored one after another.
 #[derive(Debug, Clone, Default)]
-pub(super) struct Aliases {
+pub(in crate::montecarlo) struct Aliases {
     /// Per distribution, its first column and its number of columns.
     pub(super) index: Vec<(u32, u32)>,
     /// The columns.
@@ -87,7 +88,7 @@ impl Aliases {
     /// The value distribution `dist` gives for the random word `u`: the high part of `u · n`
     /// chooses a column, the top 63 bits of the low part keep it or take its alias.
     #[inline(always)]
-    pub(super) fn draw(&self, dist: usize, u: u64) -> u64 {
+    pub(in crate::montecarlo) fn draw(&self, dist: usize, u: u64) -> u64 {
         let (off, n) = self.index[dist];
         let m = u128::from(u) * u128::from(n);
         let e = &self.entries[off as usize + (m >> 64) as usize];
@@ -327,6 +328,38 @@ fn attacker_tables(att: &Attacker) -> Result<(Aliases, u64)> {
         }
     }
     Ok((aliases, att.start as u64))
+}
+
+/// The alias tables of an attacker automaton of the exact engine (validated by its constructor),
+/// in the layout of [`attacker_tables`]: distribution `2 s + flag` over the outcomes
+/// `next << 1 | deliver`. For the closed-loop game kernel, which draws its attacker as this
+/// kernel does. Refused, naming `automaton`, beyond [`MAX_ENTRIES`] states or moves.
+pub(in crate::montecarlo) fn automaton_aliases(att: &AttackerAutomaton) -> Result<Aliases> {
+    let n = att.n_states();
+    let moves: usize = (0..n)
+        .map(|s| att.moves(s, false).len() + att.moves(s, true).len())
+        .sum();
+    if n.max(moves) > MAX_ENTRIES {
+        return Err(Error::TooLarge {
+            arg: "automaton".into(),
+            requested: n.max(moves) as u128,
+            limit: MAX_ENTRIES as u128,
+        });
+    }
+    let mut aliases = Aliases::default();
+    for s in 0..n {
+        for flag in [false, true] {
+            let ev = att.moves(s, flag);
+            let p: Vec<f64> = ev.iter().map(|m| m.p).collect();
+            // The outcomes of `outcome`.
+            let values: Vec<u64> = ev
+                .iter()
+                .map(|m| ((m.next as u64) << 1) | u64::from(m.deliver))
+                .collect();
+            aliases.push(&p, &values);
+        }
+    }
+    Ok(aliases)
 }
 
 /// `tr[τ]` = Tr h^τ(P̄) for τ = 0..=`max` or up to where the table settles (an increasing

@@ -33,6 +33,14 @@
 //! support check. These are the rules of
 //! [`crate::chain::general::capped_attack_chain`], which the tests compare with.
 //!
+//! Any other attacker is an automaton ([`GameConfig::automaton`], the exact engine's
+//! [`AttackerAutomaton`]: every built-in attack, injection with a minimum gap, mimicry, or one
+//! written by hand): the block and the forgery are then one move, as in the automaton Monte Carlo
+//! ([`crate::montecarlo::automaton`]) and the exact engine: the attacker in state s sees the event
+//! "flag" (the detector sent a genuine flag-ACK this step) or "quiet", takes one of that event's
+//! moves (p, deliver, next), and the sensor receives a flag-ACK iff `deliver`. It starts in its
+//! start state and moves at every step, offline included, as the built-in attacks do.
+//!
 //! A Markov channel ([`MarkovChannel`], the package's convention): K states, P row-stochastic
 //! with one closed class, `P[i][j]` = P(c_{k+1} = j | c_k = i); given c_k the step's packet
 //! arrives independently of everything else with probability `low[c_k]` at low power and
@@ -50,7 +58,8 @@
 //!   each per-run quantity a thermometer or binary bit-planes, as in the plain Monte Carlo's
 //!   bit-sliced kernel; block b draws from SplitMix64 sub-stream (seed, b), one xoshiro256++
 //!   generator per word, with bit-serial Bernoulli draws exact to 2^-64.
-//! * The lane kernel takes the rest, and every Markov channel. Runs advance in lock-step tiles of [`LANES`]; tile b draws
+//! * The lane kernel takes the rest: every Markov channel and every attacker automaton. Runs
+//!   advance in lock-step tiles of [`LANES`]; tile b draws
 //!   from SplitMix64 sub-stream (seed, b), one xoshiro256++ generator per lane. Each step takes
 //!   one 64-bit output per lane and splits it into four 16-bit slices for the step's four
 //!   possible draws (arrival, memory length, block, forgery); a slice equal to the top 16 bits
@@ -58,7 +67,11 @@
 //!   every draw is exactly Bernoulli(⌊p 2^64⌋ / 2^64). On a Markov channel the arrival's slice
 //!   draws with the state's and the power's probability, and one further 64-bit output per step
 //!   draws the next state by inverse CDF on the thresholds ⌊F_j 2^64⌋ of the cumulative row
-//!   (exact to 2^-64 likewise); c_1 takes one output per lane before the first step.
+//!   (exact to 2^-64 likewise); c_1 takes one output per lane before the first step. An
+//!   attacker automaton takes one further output per step (after the arrival's, before the
+//!   channel's), which draws its move from the (state, event)'s alias table as the automaton
+//!   Monte Carlo does (each move's probability exact to n 2^-63 for an event of n moves); the
+//!   block's and the forgery's slices then go unused.
 //!
 //! Either way each run's result depends on the seed and its index only, not on threads or on
 //! how many runs follow. Blocks and tiles run in parallel (rayon) and are collected in order;
@@ -77,7 +90,7 @@ use rayon::prelude::*;
 use super::bitslice::RUNS;
 use super::cpu::Avx2;
 use crate::attack::Attack;
-use crate::engine::Channel;
+use crate::engine::{AttackerAutomaton, Channel};
 use crate::error::{Error, Result};
 pub use crate::montecarlo::automaton::MarkovChannel;
 use crate::montecarlo::rng::{bernoulli_threshold, SplitMix64, Xoshiro256pp};
@@ -159,6 +172,10 @@ pub struct GameConfig {
     pub offline: Vec<u8>,
     /// The attack (`None`: none). It runs in every window, online or not.
     pub attack: Option<Attack>,
+    /// An attacker automaton instead of `attack` (`None`: `attack` decides; giving both is
+    /// refused): any attacker, built-in, mimicry or written by hand, in the exact engine's form.
+    /// It runs in every window too, on the lane kernel.
+    pub automaton: Option<AttackerAutomaton>,
     /// The sensor's policy.
     pub policy: Policy,
     /// Window length in steps, >= 1.
@@ -210,6 +227,12 @@ impl GameConfig {
         self.design.validate()?;
         if let Some(a) = &self.attack {
             a.validate()?;
+        }
+        if self.attack.is_some() && self.automaton.is_some() {
+            return Err(Error::invalid(
+                "automaton",
+                "give either an attack or an attacker automaton, not both",
+            ));
         }
         if self.offline.is_empty() || self.offline.iter().any(|&g| g > 1) {
             return Err(Error::invalid("offline", "must be a non-empty 0/1 pattern"));

@@ -1,14 +1,16 @@
 //! The validated, precomputed form of a [`GameConfig`]: exact Bernoulli draws from 16-bit
-//! slices, the attacker's blocking rule, the trace table, the interval test's bins and the
-//! support check's gap.
+//! slices, the attacker's blocking rule (or its automaton's alias tables), the trace table, the
+//! interval test's bins and the support check's gap.
 
 use super::channel::ChannelPlan;
 use super::*;
+use crate::montecarlo::automaton::tables::{automaton_aliases, Aliases};
 
 pub(super) const RULE_NONE: u8 = 0;
 pub(super) const RULE_FIRST_R: u8 = 1;
 pub(super) const RULE_MASK: u8 = 2;
 pub(super) const RULE_RANDOM: u8 = 3;
+pub(super) const RULE_AUTOMATON: u8 = 4;
 
 /// A Bernoulli draw from a 16-bit slice, exact to 2^-64 (see the module docs).
 #[derive(Debug, Clone, Copy)]
@@ -51,6 +53,12 @@ pub(super) enum Block {
     },
     Mask(Vec<bool>),
     Random(Bern),
+    /// An attacker automaton: its moves' alias tables (distribution `2 s + flag`, outcomes
+    /// `next << 1 | deliver`) and its start state. It forges too: the plan's γ is 0.
+    Automaton {
+        moves: Aliases,
+        start: u64,
+    },
 }
 
 impl Block {
@@ -126,7 +134,13 @@ impl<'a> Plan<'a> {
             mu: Bern::new(cfg.design.mu),
             gamma: Bern::new(gamma),
             forging: gamma > 0.0,
-            block: Block::of(cfg.attack.as_ref())?,
+            block: match &cfg.automaton {
+                Some(a) => Block::Automaton {
+                    moves: automaton_aliases(a)?,
+                    start: a.start() as u64,
+                },
+                None => Block::of(cfg.attack.as_ref())?,
+            },
             z0: cfg.design.z0,
             bin_of,
             bins,

@@ -5,6 +5,8 @@ use super::plan::Plan;
 use super::*;
 use crate::schedule::{offline_schedule, Ratio};
 
+/// Attacker automata.
+mod automaton;
 /// The game on a Markov channel.
 mod channel;
 /// The support check.
@@ -21,6 +23,7 @@ fn config(attack: Option<Attack>, policy: Policy) -> GameConfig {
         design: OnlineDesign::fixed(2).unwrap(),
         offline: offline_schedule(Ratio::new(1, 7).unwrap()).unwrap(),
         attack,
+        automaton: None,
         policy,
         window: 1000,
         horizon: 20_000,

@@ -3,6 +3,7 @@
 
 use super::plan::*;
 use super::*;
+use crate::montecarlo::automaton::tables::Aliases;
 
 /// The state of a tile's runs.
 pub(super) struct Tile {
@@ -11,6 +12,7 @@ pub(super) struct Tile {
     /// The channel state c_k of the coming step (0 on the i.i.d. channel).
     pub(super) chan: [usize; LANES],
     pub(super) z: [u64; LANES],
+    /// The attacker's state: the blocking counter, or the automaton's state.
     pub(super) sigma: [u64; LANES],
     pub(super) pending: [bool; LANES],
     pub(super) flagged: [bool; LANES],
@@ -48,12 +50,17 @@ impl Tile {
                 .map_or(0, |ch| ch.init.draw(rng[l].next_u64()))
         });
         let offline = matches!(plan.cfg.policy, Policy::Offline);
+        // An automaton starts in its start state, a blocking counter at 0.
+        let sigma = match plan.block {
+            Block::Automaton { start, .. } => start,
+            _ => 0,
+        };
         Tile {
             rng,
             tau: [0; LANES],
             chan,
             z: [0; LANES],
-            sigma: [0; LANES],
+            sigma: [sigma; LANES],
             // The paper's initial condition: high power at k = 1, as after a flag-ACK.
             pending: [true; LANES],
             flagged: [false; LANES],
@@ -119,19 +126,34 @@ impl Tile {
                 }
             };
         }
+        const A: u8 = RULE_AUTOMATON;
         match plan.block {
             Block::None => go!(RULE_NONE),
             Block::FirstR { .. } => go!(RULE_FIRST_R),
             Block::Mask(_) => go!(RULE_MASK),
             Block::Random(_) => go!(RULE_RANDOM),
+            // An automaton forges by its own moves (the plan's γ is 0), so FORGE is off.
+            Block::Automaton { .. } => match (mu, bins) {
+                _ if plan.channel.is_some() => {
+                    if bins {
+                        self.kernel::<true, false, true, A, true>(plan, steps)
+                    } else {
+                        self.kernel::<true, false, false, A, true>(plan, steps)
+                    }
+                }
+                (false, false) => self.kernel::<false, false, false, A, false>(plan, steps),
+                (false, true) => self.kernel::<false, false, true, A, false>(plan, steps),
+                (true, false) => self.kernel::<true, false, false, A, false>(plan, steps),
+                (true, true) => self.kernel::<true, false, true, A, false>(plan, steps),
+            },
         }
     }
 
-    /// The step loop, branch-free except for the rare ties of the Bernoulli slices: `MU` (a
-    /// memory-length draw), `FORGE` (forged flags), `BINS` (the interval test's histogram) and
-    /// `RULE` (the attacker's blocking rule) are compile-time, so each plan runs only its code;
-    /// so is `CH`, a Markov channel (the plan's), whose state sets each arrival's probability
-    /// and moves after the step by one further draw.
+    /// The step loop, branch-free except for the rare ties of the Bernoulli slices (and an
+    /// automaton's alias draw): `MU` (a memory-length draw), `FORGE` (forged flags), `BINS` (the
+    /// interval test's histogram) and `RULE` (the attacker's blocking rule, or its automaton) are
+    /// compile-time, so each plan runs only its code; so is `CH`, a Markov channel (the plan's),
+    /// whose state sets each arrival's probability and moves after the step by one further draw.
     #[inline(never)]
     pub(super) fn kernel<
         const MU: bool,
@@ -162,6 +184,11 @@ impl Tile {
         let beta = match plan.block {
             Block::Random(b) => b,
             _ => Bern::new(0.0),
+        };
+        let no_moves = Aliases::default();
+        let moves = match &plan.block {
+            Block::Automaton { moves, .. } => moves,
+            _ => &no_moves,
         };
         let channel = plan.channel.as_ref().filter(|_| CH);
         for _ in 0..steps {
@@ -214,8 +241,16 @@ impl Tile {
                     let next = sigma + u64::from(flag);
                     self.sigma[l] = if next == period_t { 0 } else { next };
                 }
-                let forged = FORGE & !flag & plan.gamma.draw(w >> 48, rng);
-                let delivered = (flag & !blocked) | forged;
+                let delivered = if RULE == RULE_AUTOMATON {
+                    // The automaton's move on the step's event, from a fresh output.
+                    let event = 2 * sigma as usize + usize::from(flag);
+                    let o = moves.draw(event, rng.next_u64());
+                    self.sigma[l] = o >> 1;
+                    o & 1 != 0
+                } else {
+                    let forged = FORGE & !flag & plan.gamma.draw(w >> 48, rng);
+                    (flag & !blocked) | forged
+                };
                 self.flagged[l] = flag;
                 self.pending[l] = delivered;
                 let gap = self.gap[l] + 1;

@@ -127,10 +127,10 @@ impl Sliced {
 }
 
 impl Sliced {
-    /// The kernel's form of `plan`, or `None` when the plan does not fit it (a Markov channel, a
-    /// memory deeper than
-    /// 32 steps, an interval test with more than 64 bins or a last edge beyond 64 steps, a
-    /// support check with `min_gap` beyond 64, a blocking mask with more than 8 runs of ones).
+    /// The kernel's form of `plan`, or `None` when the plan does not fit it (a Markov channel, an
+    /// attacker automaton, a memory deeper than 32 steps, an interval test with more than 64
+    /// bins or a last edge beyond 64 steps, a support check with `min_gap` beyond 64, a blocking
+    /// mask with more than 8 runs of ones).
     pub(super) fn of(plan: &Plan<'_>) -> Option<Self> {
         let cfg = plan.cfg;
         // A Markov channel runs on the lane kernel.
@@ -146,6 +146,8 @@ impl Sliced {
             .find(|&d| d > z0 && (1.0 - cfg.lam).powi(d as i32) <= DEEP_TAIL)
             .unwrap_or(MAX_DEPTH);
         let blocking = match &plan.block {
+            // An attacker automaton runs on the lane kernel.
+            Block::Automaton { .. } => return None,
             Block::None => Blocking::None,
             // The same exact threshold ⌊β 2^64⌋, split in the lane kernel's form.
             Block::Random(b) => Blocking::Random(Draw {

@@ -307,6 +307,7 @@ fn game(name: &'static str, lam: f64, (z0, mu): (u64, f64), steps: (u64, u64, u6
         design: OnlineDesign::new(z0, mu).unwrap(),
         offline: pattern(7, &[0, 3]),
         attack: None,
+        automaton: None,
         policy: Policy::Online,
         window: steps.0,
         horizon: steps.1,
