@@ -240,3 +240,19 @@ def test_the_matrix_games_policies_run_the_check_unless_told_not_to(system):
     assert p.detection == pytest.approx(
         fa.detection_probability(LAM, 2, careful, 1000, 0.01, "interval"), abs=1e-14
     )
+
+
+@pytest.mark.parametrize("beta_bar", [0.1, 0.3])
+def test_the_closed_loop_confirms_the_harmful_rule_with_the_check(system, beta_bar):
+    """With no fall-back every window is tested, so the rate of triggering alarms is the window's
+    d: the count test with the support check under the harmful rule (a short gap triggers only
+    with N <= harm), exact in detection_probability, against 100,000 closed-loop windows."""
+    attack = fa.FlagInjection(0.002, fa.RandomBlocking(0.3))
+    d = fa.detection_probability(LAM, 2, attack, 200, 0.01, beta_bar=beta_bar)
+    any_alarm = fa.detection_probability(LAM, 2, attack, 200, 0.01)
+    policy = fa.SensorPolicy("count", 0.01, 0, "harmful")
+    g = fa.simulate_game(
+        system, LAM, RATIO, policy, attack, 200 * 100, 1000, seed=5, n_steps=200, beta_bar=beta_bar
+    )
+    assert 0.1 < d < any_alarm - 0.005
+    assert abs(g.fallback_rate - d) < 4 * g.fallback_stderr, (g.fallback_rate, g.fallback_stderr, d)
