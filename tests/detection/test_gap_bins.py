@@ -153,3 +153,51 @@ def test_the_closed_loop_confirms_the_careful_forgers_interval_detection(gamma, 
     p = fa.detection_probability(0.5, 2, attack, 1000, 0.01, "interval")
     r = fa.detection_rates(0.5, 2, attack, 1000, 20_000, test="interval", alternative="two-sided")
     assert abs(r.detection - p) < 4 * r.detection_stderr + 0.005, (r.detection, r.detection_stderr, p)
+
+
+def protocol_interval_and_short(lam, z0, gamma, beta, test, runs, burn, seed):
+    """As :func:`protocol_interval_alarms` for the naive forger (min_gap = 1), also returning
+    whether each window held a gap shorter than z0 + 1 (the support check)."""
+    rng = np.random.default_rng(seed)
+    high = np.ones(runs, bool)
+    z = np.zeros(runs, int)
+    age = np.zeros(runs, int)
+    short = np.zeros(runs, bool)
+    counts = np.zeros((runs, len(test.edges)))
+    for k in range(burn + test.n_steps):
+        arrive = high | (rng.random(runs) < lam)
+        z = np.where(arrive, 0, z + 1)
+        flag = ~arrive & (z >= z0)
+        z = np.where(flag, 0, z)
+        age += 1
+        deliver = (flag & (rng.random(runs) >= beta)) | (~flag & (rng.random(runs) < gamma))
+        if k >= burn:
+            b = np.searchsorted(test.edges, age, side="right") - 1
+            np.add.at(counts, (np.flatnonzero(deliver), b[deliver]), 1.0)
+            short |= deliver & (age < z0 + 1)
+        age = np.where(deliver, 0, age)
+        high = deliver
+    x2 = ((counts - test.expected) ** 2 / test.expected).sum(axis=1)
+    return x2 > test.critical, short
+
+
+def test_the_interval_test_with_the_support_check_is_the_protocols():
+    """The combination P(short) + P(no short) P_h(X² > c) against 40,000 protocol windows: the
+    whole and the conditional part, X² given no short gap (the Doob transform's bin moments),
+    within 4 standard errors and 0.005 (the normal approximation's error)."""
+    from fakeack.detection.gap_bins import conditioned_bin_rates
+
+    runs = 40_000
+    attack = fa.FlagInjection(0.001, fa.RandomBlocking(0.2))
+    test = fa.interval_test(0.5, 2, 1000, 0.01)
+    p = fa.detection_probability(0.5, 2, attack, 1000, 0.01, "interval")
+    p_s = fa.detection_probability(0.5, 2, attack, 1000, 0.01, "support")
+    alarm, short = protocol_interval_and_short(0.5, 2, 0.001, 0.2, test, runs, 300, seed=8)
+    sim = np.mean(alarm | short)
+    assert abs(sim - p) < 4 * np.sqrt(p * (1 - p) / runs) + 0.005, (sim, p)
+    given = (p - p_s) / (1 - p_s)  # P_h(X² > c)
+    sim_given = alarm[~short].mean()
+    assert abs(sim_given - given) < 4 * np.sqrt(given * (1 - given) / (~short).sum()) + 0.005
+    process = fa.flag_process(0.5, fa.OnlineDesign(2), attack)
+    rho = conditioned_bin_rates(process, test.edges, 3)[2]
+    assert rho**1000 == pytest.approx(1 - p_s, abs=0.01)  # the survival rate, asymptotically

@@ -203,13 +203,12 @@ def test_the_payoffs_detection_is_detection_probabilitys_with_the_check(system, 
     assert alone.detection <= p.detection  # the check only adds alarms
 
 
-def test_the_payoffs_interval_test_with_the_check_warns_where_it_assumes_independence(system):
-    policy = fa.SensorPolicy("interval", 0.01, 2)
-    with pytest.warns(UserWarning, match="game_payoff: the interval test and the support check"):
-        p = fa.game_payoff(system, LAM, RATIO, policy, fa.FlagInjection(0.0004), 1000)
-    p_s = fa.detection_probability(LAM, 2, fa.FlagInjection(0.0004), 1000, 0.01, test="support")
-    p_x = fa.detection_probability(LAM, 2, fa.FlagInjection(0.0004), 1000, 0.01, "interval", support=False)
-    assert p.detection == pytest.approx(1 - (1 - p_s) * (1 - p_x), abs=1e-12)
+def test_the_payoffs_interval_test_with_the_check_is_detection_probabilitys(system):
+    policy = fa.SensorPolicy("interval", 0.01, 2, "harmful")
+    for attack in (fa.FlagInjection(0.0004), fa.FlagInjection(0.001, fa.RandomBlocking(0.2))):
+        p = fa.game_payoff(system, LAM, RATIO, policy, attack, 1000, beta_bar=0.1)
+        d = fa.detection_probability(LAM, 2, attack, 1000, 0.01, "interval", beta_bar=0.1)
+        assert p.detection == pytest.approx(d, abs=1e-12) and d > 0.005
 
 
 @pytest.mark.parametrize("test", ["count", "interval"])

@@ -3,7 +3,6 @@ for the figure of :func:`fakeack.plots.plot_detection_curves`."""
 
 from __future__ import annotations
 
-import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -77,8 +76,7 @@ def detection_curves(
         Probability of the z0-bit memory at each step (default 1).
     support : bool, optional
         Whether the count and interval tests run with the support check beside them (default
-        True). The interval test's combination treats the two as independent; one
-        ``UserWarning`` says so where that is not pinned within 1e-4.
+        True).
 
     Returns
     -------
@@ -101,25 +99,12 @@ def detection_curves(
         raise TypeError(f"support must be True or False, got {support!r}")
     rate = flag_process(channel, OnlineDesign(z0, mu)).rate
     out = np.full((len(tests_), len(attacks_), len(windows)), np.nan)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", UserWarning)
-        for i, test in enumerate(tests_):
-            for k, n in enumerate(windows):
-                if test == "interval" and n * rate < MIN_EXPECTED_FLAGS:
-                    continue  # the interval test refuses such windows
-                for j, a in enumerate(attacks_):
-                    out[i, j, k] = detection_probability(
-                        channel, z0, a, int(n), level, test, mu=mu, support=support
-                    )
-    combined = [w for w in caught if "combined as independent" in str(w.message)]
-    for w in caught:
-        if w not in combined:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    if combined:
-        warnings.warn(
-            f"detection_curves: {len(combined)} interval-test point{'s' if len(combined) > 1 else ''} "
-            f"combine the test and the support check as independent ({combined[0].message})",
-            UserWarning,
-            stacklevel=2,
-        )
+    for i, test in enumerate(tests_):
+        for k, n in enumerate(windows):
+            if test == "interval" and n * rate < MIN_EXPECTED_FLAGS:
+                continue  # the interval test refuses such windows
+            for j, a in enumerate(attacks_):
+                out[i, j, k] = detection_probability(
+                    channel, z0, a, int(n), level, test, mu=mu, support=support
+                )
     return DetectionCurves(windows, tests_, attacks_, out, level, support)

@@ -4,7 +4,6 @@ count and of X², with exact gap laws), and simulated detection rates that check
 from __future__ import annotations
 
 import math
-import warnings
 from typing import Any, TypeAlias, cast
 
 import numpy as np
@@ -33,10 +32,10 @@ from .count import (
     harmful_bound,
     uses_exact_law,
 )
-from .gap_bins import bin_rates
+from .gap_bins import bin_rates, conditioned_bin_rates
 from .interval_test import IntervalTest, cached_interval_test
 from .intervals import design_walk
-from .process import flag_process
+from .process import FlagProcess, flag_process
 
 __all__ = [
     "TESTS",
@@ -81,12 +80,17 @@ def _count_probability(
 
 
 def _attack_form(
-    test: IntervalTest, attack: object, truth: Channel | None = None
+    test: IntervalTest,
+    attack: object,
+    truth: Channel | None = None,
+    moments: tuple[FloatArray, FloatArray] | None = None,
 ) -> tuple[FloatArray, FloatArray] | None:
     """(mean, covariance) of y = D^-1/2 (O - E) under the attack (on the true channel, default the
     test's); None when no flag gets through. The gap walk's Markov renewal moments for the
     built-in attacks on the paper's channel, the flag process's (:mod:`.gap_bins`) otherwise."""
-    if truth is None and (attack is None or (isinstance(attack, Attack) and not _careful(attack))):
+    if moments is not None:  # the bin moments per step, given (e.g. of a conditioned chain)
+        rates, sigma_a = moments
+    elif truth is None and (attack is None or (isinstance(attack, Attack) and not _careful(attack))):
         w = design_walk(test.lam, test.design, attack)
         if w.endless:
             return None
@@ -119,8 +123,14 @@ class AttackForm:
     split where s² crosses c).
     """
 
-    def __init__(self, test: IntervalTest, attack: object, truth: Channel | None = None) -> None:
-        form = _attack_form(test, attack, truth)
+    def __init__(
+        self,
+        test: IntervalTest,
+        attack: object,
+        truth: Channel | None = None,
+        moments: tuple[FloatArray, FloatArray] | None = None,
+    ) -> None:
+        form = _attack_form(test, attack, truth, moments)
         self.none = form is None  # no flag: O = 0, X² = Σ E deterministic, N = 0
         self.total = float(test.expected.sum())
         if form is None:
@@ -322,9 +332,10 @@ def detection_probability(
         attack-free minimum, so this changes nothing without forgery. Against a forger the count
         test's combined probability :math:`1 - P(\text{no short gap}, lo < N < hi)` is exact
         (:meth:`fakeack.FlagProcess.window_alarm_probability`); the interval test's is
-        :math:`1 - (1 - p_s)(1 - p_X)`, which treats the two as independent: it warns
-        (``UserWarning``) unless the exact value's bounds :math:`\max(p_s, p_X)` and
-        :math:`\min(1, p_s + p_X)` are within 1e-4. ``support=False`` gives the test alone.
+        :math:`p_s + (1 - p_s)\,P_h(X^2 > c)`, with the short-gap probability :math:`p_s` exact
+        and X²'s law given no short gap from the flag process conditioned on it (the Doob
+        transform of the chain without the short-gap deliveries; ``fakeack.detection.gap_bins``),
+        normal as the test's own. ``support=False`` gives the test alone.
 
     Returns
     -------
@@ -350,38 +361,51 @@ def detection_probability(
         return _probability(*args, **kw)
     if test == "count":
         return _count_with_support(args, kw)
-    gaps = {**kw, "beta_bar": None}
-    p_s = _probability(channel, z0, attack, n_steps, alpha, "support", alternative, mu, **gaps)
-    if p_s == 0.0:
-        return _probability(*args, **kw)
-    p_x = _probability(*args, **kw)
-    combined, pinned = support_union(p_s, p_x)
-    if not pinned:
-        warn_support_union("detection_probability", p_s, p_x, stacklevel=2)
-    return combined
+    return _interval_with_support(args, kw)
 
 
-def support_union(p_s: float, p_x: float) -> tuple[float, bool]:
-    """The interval test's alarm probability with the support check beside it, treating the two as
-    independent: :math:`1 - (1 - p_s)(1 - p_x)`, and whether the exact value's bounds (Fréchet:
-    :math:`\\max(p_s, p_x)` and :math:`\\min(1, p_s + p_x)`) pin it within :data:`_PINNED`."""
-    lower, upper = max(p_s, p_x), min(1.0, p_s + p_x)
-    return 1.0 - (1.0 - p_s) * (1.0 - p_x), upper - lower <= _PINNED
+def interval_support_probability(
+    test: IntervalTest, process: FlagProcess, min_gap: int, harm: int | None, alone: float
+) -> float:
+    r"""The interval test with the support check beside it, under the flag process ``process``:
+    :math:`P(\text{short gap}) + P(\text{no short gap})\,P_h(X^2 > c)`, with ``harm`` only the
+    alarms with :math:`N \le` harm.
+
+    P(short gap) (and its part with N <= harm) is exact; given no short gap the flag process is
+    the Doob transform of the chain with the short-gap deliveries removed
+    (:func:`.gap_bins.conditioned_bin_rates`), whose bin moments give X²'s normal approximation,
+    as the test's own law is computed. ``alone`` (the test without the check) is returned where
+    no gap is ever short.
+    """
+    n = test.n_steps
+    p_short = process.short_gap_probability(n, min_gap)
+    if p_short == 0.0:
+        return alone
+    p_s = p_short if harm is None else process.window_alarm_probability(n, min_gap, (-1, n + 1), harm)
+    if p_short >= 1.0 - 1e-15:
+        return p_s
+    rates, sigma, _ = conditioned_bin_rates(process, test.edges, min_gap)
+    form = AttackForm(test, None, moments=(rates, sigma))
+    p_x = float(sum_tails([interval_batch(test, form, harm)])[0])
+    return float(min(max(p_s + (1.0 - p_short) * p_x, 0.0), 1.0))
 
 
-def warn_support_union(where: str, p_s: float, p_x: float, stacklevel: int) -> None:
-    """The ``UserWarning`` of an unpinned :func:`support_union` (``stacklevel`` as the caller's)."""
-    warnings.warn(
-        f"{where}: the interval test and the support check combined as independent (support {p_s:.4g}, "
-        f"interval {p_x:.4g}; the exact value lies in [{max(p_s, p_x):.4g}, "
-        f"{min(1.0, p_s + p_x):.4g}]); the count test's combination is exact",
-        UserWarning,
-        stacklevel=stacklevel + 1,
-    )
-
-
-#: Bounds on the interval test's combination with the support check this close pin it without a warning.
-_PINNED = 1e-4
+def _interval_with_support(args: tuple[Any, ...], kw: dict[str, Any]) -> float:
+    """The interval test with the support check (``args`` and ``kw`` as :func:`_probability`
+    takes them): :func:`interval_support_probability` on the paper's channel."""
+    channel, z0, attack, n_steps, alpha, _, _, mu = args
+    alone = _probability(*args, **kw)  # validates every argument, and refuses what it must
+    ch, _ = channel_argument(channel, kw["lam"], "detection_probability")
+    design = OnlineDesign(cast(int, z0), mu)
+    truth = ch if kw["true_channel"] is None else as_channel(kw["true_channel"], "true_channel")
+    n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
+    harm = None
+    if kw["beta_bar"] is not None:
+        harm = harmful_count(ch, design, n, kw["beta_bar"], kw["true_channel"], None)
+    att = attack if isinstance(attack, (MimicryAttack, AttackerAutomaton)) else as_attack(attack)
+    test = cached_interval_test(float(ch.low[0]), design, n, as_probability("alpha", alpha))
+    gap = flag_process(ch, design).min_gap
+    return interval_support_probability(test, flag_process(truth, design, att), gap, harm, alone)
 
 
 def forges(attack: object, authenticated: bool) -> bool:

@@ -18,8 +18,6 @@ from ..detection.probability import (
     check_test,
     detection_probability,
     forges,
-    support_union,
-    warn_support_union,
 )
 from ..model.schedules import OnlineDesign, check_online
 from ..model.system import LinearSystem, compiled
@@ -157,9 +155,8 @@ def stealthy_frontier(
         attack is then scored by its blocking part (``fakeack.attacks.discard_forgeries``), so a
         forger gains nothing from forging.
     support : bool, optional
-        Whether the sensor runs the support check beside its test (default True). The count
-        test's combination is exact; the interval test's treats the two as independent and warns
-        once (``UserWarning``) where that is not pinned within 1e-4.
+        Whether the sensor runs the support check beside its test (default True), as
+        :func:`fakeack.detection_probability` combines them.
 
     Returns
     -------
@@ -236,20 +233,10 @@ def _with_support(
     attacks: list[Attack | AttackerAutomaton | None],
     alone: FloatArray,
 ) -> FloatArray:
-    """The detection probabilities with the support check beside the test: exact for the count
-    test; for the interval test combined as independent, with one warning for the family."""
+    """The detection probabilities with the support check beside the test (only forgery shortens
+    a gap, so the rest keep the test's own)."""
     d = alone.copy()
-    unpinned: list[tuple[float, float]] = []
     for i, a in enumerate(attacks):
-        if not forges(a, False):
-            continue  # only forgery shortens a gap
-        if test == "count":
+        if forges(a, False):
             d[i] = detection_probability(lam, design.z0, a, n, alpha, test, alternative, design.mu)
-            continue
-        p_s = detection_probability(lam, design.z0, a, n, alpha, "support", mu=design.mu)
-        d[i], pinned = support_union(p_s, float(alone[i]))
-        if not pinned:
-            unpinned.append((p_s, float(alone[i])))
-    if unpinned:
-        warn_support_union(f"stealthy_frontier ({len(unpinned)} attacks)", *unpinned[0], stacklevel=3)
     return d

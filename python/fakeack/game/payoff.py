@@ -29,9 +29,8 @@ from ..detection.probability import (
     AttackForm,
     forges,
     interval_batch,
+    interval_support_probability,
     sum_tails,
-    support_union,
-    warn_support_union,
 )
 from ..detection.process import FlagProcess, flag_process
 from ..model.channels import as_channel
@@ -125,23 +124,15 @@ class _Setting:
         d = self._test_alone(policy, timing, harm)
         if not policy.support:
             return d
-        unpinned: list[tuple[float, float]] = []
         for i, a in enumerate(timing):
             if not forges(a, False):
                 continue  # only forgery makes a gap shorter than the attack-free minimum
             process = self._process(a)
             if policy.test == "count":
                 d[i] = process.window_alarm_probability(self.n, self.min_gap, self._bounds(policy), harm)
-                continue
-            if harm is None:
-                p_s = process.short_gap_probability(self.n, self.min_gap)
             else:
-                p_s = process.window_alarm_probability(self.n, self.min_gap, (-1, self.n + 1), harm)
-            d[i], pinned = support_union(p_s, float(d[i]))
-            if not pinned:
-                unpinned.append((p_s, float(d[i])))
-        if unpinned:
-            warn_support_union("game_payoff", *unpinned[0], stacklevel=4)
+                test = cached_interval_test(self.lam, self.design, self.n, cast(float, policy.alpha))
+                d[i] = interval_support_probability(test, process, self.min_gap, harm, float(d[i]))
         return d
 
     def _test_alone(self, policy: SensorPolicy, attacks: list[GameAttack], harm: int | None) -> FloatArray:
@@ -269,8 +260,8 @@ def game_payoff(
 
     The count test's d is exact or normal as in :func:`fakeack.detection_probability`, and
     exact with the support check against a forger; the interval test's combination with the
-    support check treats the two as independent and warns (``UserWarning``) unless that is
-    pinned within 1e-4. Mimicry of the game's own channel and detector delivers the attack-free
+    support check is P(short gap) plus P(no short gap) times the test's alarm probability given
+    none, as there. Mimicry of the game's own channel and detector delivers the attack-free
     flag process, so every test sees it at its false-alarm rate; the interval test's law under a
     forger with ``min_gap > 1`` or any other attacker automaton comes from the flag process of
     the engine's automaton (``fakeack.detection.gap_bins``).
