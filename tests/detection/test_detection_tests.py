@@ -311,7 +311,7 @@ def test_detection_probability_by_monte_carlo_of_the_normal_model():
     # and the harmful joint probability against the same samples.
     att = fa.PeriodicBlocking(1, 5)
     t = interval_test(0.5, 2, 1000, 0.01)
-    from fakeack.detection.probability import _attack_form, _joint_tail
+    from fakeack.detection.interval_power import _attack_form, _joint_tail
 
     mean, cov = _attack_form(t, att)
     rng = np.random.default_rng(3)

@@ -11,8 +11,9 @@ under any attack (``None``: the false-alarm rate), from the exact laws of
 the delivered flag-ACKs on any channel as a Markov arrival process over the exact engine's
 automaton: their rate, variance rate and the exact count law of a window.
 
-(Over 450 lines: both tests and their power share the gap-law bins and moments; the
-detection_probability part is the next to move to a module of its own.)
+The interval statistic's law under an attack lives in ``interval_power`` (from the gap walk of
+``intervals`` or the flag process's bin moments of ``gap_bins``); the support check's joint laws
+with the count in ``process``.
 """
 
 from .count import ALTERNATIVES, Detection, count_alarm_bounds, detect_attack, harmful_count_bound

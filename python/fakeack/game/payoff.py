@@ -24,14 +24,9 @@ from ..detection.count import (
     harmful_bound,
     uses_exact_law,
 )
+from ..detection.interval_power import AttackForm, interval_batch, interval_support_probability, sum_tails
 from ..detection.interval_test import IntervalTest, cached_interval_test
-from ..detection.probability import (
-    AttackForm,
-    forges,
-    interval_batch,
-    interval_support_probability,
-    sum_tails,
-)
+from ..detection.probability import forges
 from ..detection.process import FlagProcess, flag_process
 from ..model.channels import as_channel
 from ..model.schedules import OnlineDesign, design_online, j_offline
