@@ -17,10 +17,10 @@ def test_the_careful_forger_and_mimicry_are_spelled():
     assert {"careful:0.2", "mimicry"} <= set(DEFAULT_ATTACKS)
 
 
-def test_support_and_grid():
-    assert (GameConfig().support, GameConfig().grid) == (True, 41)
-    game = parse_game({"game": {"support": False, "grid": 5}})
-    assert (game.support, game.grid) == (False, 5)
+def test_support_grid_and_prior():
+    assert (GameConfig().support, GameConfig().grid, GameConfig().attack_prior) == (True, 41, 1.0)
+    game = parse_game({"game": {"support": False, "grid": 5, "attack_prior": 0.25}})
+    assert (game.support, game.grid, game.attack_prior) == (False, 5, 0.25)
 
 
 @pytest.mark.parametrize(
@@ -28,6 +28,7 @@ def test_support_and_grid():
     [
         ({"support": 1}, "support: must be true or false"),
         ({"grid": 1}, "grid"),
+        ({"attack_prior": 1.5}, "attack_prior: must lie in"),
         ({"attacks": ["careful:x"]}, r"attacks\[0\]: cannot read 'careful:x'"),
         ({"attacks": ["careful:1.5"]}, r"attacks\[0\]"),
     ],

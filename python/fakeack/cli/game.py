@@ -132,7 +132,10 @@ def _text(cfg: Any, game: GameConfig, sol: Any, frontiers: list, checks: list, f
         f"fakeack game: {cfg.source}",
         f"  lam={cfg.lam:g}; energy ratio {cfg.ratio}; online z0={cfg.online.z0}, mu={cfg.online.mu:g}; "
         f"windows of {game.n_steps} steps; beta-bar (harmful rule) = {sol.beta_bar:.6f}",
-        f"  {len(sol.policies)} sensor policies x {len(sol.attacks)} attacks",
+        f"  {len(sol.policies)} sensor policies x {len(sol.attacks)} attacks"
+        + (
+            "" if sol.attack_prior == 1.0 else f"; the attacker present with probability {sol.attack_prior:g}"
+        ),
         "",
         sol.summary(top=6),
         "",
@@ -188,6 +191,7 @@ def run(args: argparse.Namespace) -> int:
             tests=game.tests,
             rules=game.rules,
             support=game.support,
+            attack_prior=game.attack_prior,
         )
         solved = time.perf_counter() - start
         frontiers = _frontiers(cfg, game)
@@ -210,6 +214,7 @@ def run(args: argparse.Namespace) -> int:
         "j_online": sol.j_online,
         "j_offline": sol.j_offline,
         "beta_bar": sol.beta_bar,
+        "attack_prior": sol.attack_prior,
         "n_steps": game.n_steps,
         "policies": [str(p) for p in sol.policies],
         "attacks": [_name(a) for a in sol.attacks],

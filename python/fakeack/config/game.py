@@ -16,6 +16,7 @@ Every key is optional; the defaults are the paper example's game of the README::
     seed = 1
     grid = 41                            # budgets in the frontiers' random families
     support = true                       # the sensor runs the support check beside its test
+    attack_prior = 1.0                   # the probability that the attacker is there at all
 
 Attacks are written as everywhere else (``"r/t"``, ``"random:beta"``, ``"inject:gamma"``,
 ``"inject:gamma+random:beta"``), plus ``"none"``, ``"match:beta"`` (the rate-matching attack of
@@ -57,6 +58,7 @@ GAME_SECTION = Section(
         "seed",
         "grid",
         "support",
+        "attack_prior",
     )
 )
 
@@ -107,6 +109,7 @@ class GameConfig:
     seed: int = 1
     grid: int = 41
     support: bool = True
+    attack_prior: float = 1.0
 
     def attack_objects(self, lam: float, z0: int, mu: float) -> list:
         """The attacks as objects (``None`` for no attack)."""
@@ -190,6 +193,11 @@ def parse_game(data: dict[str, Any]) -> GameConfig:
         if not 0 <= m <= 1:
             raise config_error("game", "max_detection", f"must lie in [0, 1], got {m}")
         given["max_detection"] = m
+    if "attack_prior" in table:
+        prior = read_real("game", "attack_prior", table["attack_prior"])
+        if not 0 <= prior <= 1:
+            raise config_error("game", "attack_prior", f"must lie in [0, 1], got {prior}")
+        given["attack_prior"] = prior
     if "support" in table:
         if not isinstance(table["support"], bool):
             raise config_error("game", "support", f"must be true or false, got {toml_kind(table['support'])}")

@@ -10,6 +10,7 @@ import numpy as np
 import numpy.typing as npt
 
 from .._internal.types import FloatArray, RatioLike
+from .._internal.validate import as_probability
 from ..attacks.automata import AttackerAutomaton, MimicryAttack
 from ..attacks.kinds import AttackLike
 from ..detection.count import check_alternative
@@ -62,6 +63,8 @@ class GameSolution:
     j_online: float
     n_steps: int
     beta_bar: float
+    attack_prior: float = 1.0
+    """The probability that the attacker is present at all (see :func:`solve_game`)."""
 
     def summary(self, top: int = 5) -> str:
         """A few lines: the value, the support of both strategies, the Stackelberg outcome."""
@@ -86,6 +89,15 @@ class GameSolution:
             f"answers {answer}; J = {st.payoff:.6f}"
         )
         return "\n".join(lines)
+
+
+def _mix(prior: float, attacked: FloatArray, clean: FloatArray) -> FloatArray:
+    """prior * attacked + (1 - prior) * clean (one value per row), exact at prior 0 and 1."""
+    if prior == 1.0:
+        return attacked
+    if prior == 0.0:
+        return np.repeat(clean[:, None], attacked.shape[1], axis=1)
+    return prior * attacked + (1.0 - prior) * clean[:, None]
 
 
 def _name(attack: GameAttack) -> str:
@@ -116,6 +128,7 @@ def solve_game(
     beta_bar: float | None = None,
     authenticated: bool = False,
     support: bool = True,
+    attack_prior: float = 1.0,
 ) -> GameSolution:
     r"""Solve the zero-sum game between the sensor's policies and a list of attacks.
 
@@ -163,6 +176,11 @@ def solve_game(
         :class:`SensorPolicy`). Against it a forger that ignores the attack-free gaps is seen in
         almost every window; the careful forger (``FlagInjection(..., min_gap=z0 + 1)``) and
         mimicry are not.
+    attack_prior : float, optional
+        The probability π in [0, 1] that the attacker is present at all (default 1): each entry
+        is then :math:`\pi J(\text{policy}, \text{attack}) + (1 - \pi) J(\text{policy},
+        \text{no attack})`, and likewise the energy and d, so that the sensor pays for its false
+        alarms on the clean channel. With π = 0 the value is J_on (never test).
 
     Returns
     -------
@@ -176,14 +194,24 @@ def solve_game(
     policies = _policies(tests, alphas, fallbacks, rules, alternative, support)
     attack_list = _attack_list(attacks)
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
+    prior = as_probability("attack_prior", attack_prior, closed=True)
     played = [played_attack(setting, a, authenticated) for a in attack_list]
-    payoffs = []
+    rows, clean = [], []
     for p in policies:
-        d = setting.detections(p, played)
-        payoffs.append([_payoff(setting, p, a, float(x)) for a, x in zip(played, d, strict=True)])
-    A = np.array([[x.j for x in row] for row in payoffs])
-    H = np.array([[x.high_power for x in row] for row in payoffs])
-    D = np.array([[x.detection for x in row] for row in payoffs])
+        d = setting.detections(p, [*played, None])
+        cells = [_payoff(setting, p, a, float(x)) for a, x in zip([*played, None], d, strict=True)]
+        rows.append(cells[:-1])
+        clean.append(cells[-1])
+    # The attacker is present with probability prior; absent, every column is the clean one (an
+    # infinite J of an attack that is never played does not count).
+    A, H, D = (
+        _mix(
+            prior,
+            np.array([[getattr(x, f) for x in row] for row in rows]),
+            np.array([getattr(c, f) for c in clean]),
+        )
+        for f in ("j", "high_power", "detection")
+    )
     if not np.all(np.isfinite(A)):
         j, a = np.argwhere(~np.isfinite(A))[0]
         raise ValueError(f"attacks: {_name(attack_list[a])} makes J infinite under {policies[j]}")
@@ -231,4 +259,5 @@ def solve_game(
         j_online=setting.attack_costs(None)[0],
         n_steps=setting.n,
         beta_bar=setting.beta_bar,
+        attack_prior=prior,
     )
