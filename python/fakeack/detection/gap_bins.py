@@ -59,8 +59,8 @@ def conditioned_bin_rates(
     rho, h = _perron(P)
     live = h > 0
     scale = np.where(live, h, 1.0)
-    D = sp.diags_array(1.0 / (rho * scale))
-    H = sp.diags_array(np.where(live, h, 0.0))
+    D = _diagonal(1.0 / (rho * scale))
+    H = _diagonal(np.where(live, h, 0.0))
     P0h, P1h = (D @ P0 @ H).tocsr(), (D @ P1 @ H).tocsr()
     stuck = np.flatnonzero(~live)  # never reached by a surviving path: a self-loop keeps P_h stochastic
     P0h = (P0h + sp.csr_array((np.ones(stuck.size), (stuck, stuck)), shape=P.shape)).tocsr()
@@ -110,6 +110,12 @@ def _moments(P0: sp.csr_array, P1: sp.csr_array, bins: IntArray, k: int) -> tupl
     np.add.at(M, bins, pi[:, None] * lands)
     sigma = np.diag(r) - np.outer(r, r) + M + M.T
     return r, 0.5 * (sigma + sigma.T)
+
+
+def _diagonal(values: FloatArray) -> sp.csr_array:
+    """A diagonal sparse array (``scipy.sparse.diags_array`` needs SciPy 1.11; we support 1.10)."""
+    idx = np.arange(len(values))
+    return sp.csr_array((values, (idx, idx)), shape=(len(values), len(values)))
 
 
 def _perron(P: sp.csr_array, tol: float = 1e-14, max_iter: int = 100_000) -> tuple[float, FloatArray]:
