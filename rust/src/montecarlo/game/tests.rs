@@ -267,6 +267,23 @@ fn bad_configs_name_the_field() {
         .starts_with("expected:"));
 }
 
+/// A count test of 1000-step windows on the paper's example with bounds `half_width` flag-ACKs
+/// either side of the attack-free mean count, `fallback` offline windows after any alarm and the
+/// support check at `min_gap` (0: none).
+pub(super) fn free_count_policy(half_width: f64, fallback: u64, min_gap: u64) -> Policy {
+    let design = OnlineDesign::fixed(2).unwrap();
+    let free = crate::flag_rates(0.5, design, None).unwrap().delivered * 1000.0;
+    Policy::Test {
+        detector: Detector::Count {
+            lo: (free - half_width) as i64,
+            hi: (free + half_width) as i64,
+        },
+        harmful_at_most: None,
+        fallback,
+        min_gap,
+    }
+}
+
 /// An interval test on 5 bins of gaps whose alarms, on the paper's example, are neither rare nor
 /// sure (about 73% under injection at γ = 0.05), with `fallback` offline windows after any alarm.
 fn interval_policy(fallback: u64) -> Policy {
@@ -290,17 +307,7 @@ fn game_speed() {
     // The policies: online throughout, and the count test (bounds at about 2.6 standard
     // deviations of the attack-free count) and a 5-bin interval test, each with two offline
     // windows after any alarm.
-    let design = OnlineDesign::fixed(2).unwrap();
-    let free = crate::flag_rates(0.5, design, None).unwrap().delivered * 1000.0;
-    let count = Policy::Test {
-        detector: Detector::Count {
-            lo: (free - 40.0) as i64,
-            hi: (free + 40.0) as i64,
-        },
-        harmful_at_most: None,
-        fallback: 2,
-        min_gap: 0,
-    };
+    let count = free_count_policy(40.0, 2, 0);
     let interval = interval_policy(2);
     // The count test with the support check at z0 + 1.
     let mut support = count.clone();

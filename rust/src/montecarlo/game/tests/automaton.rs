@@ -3,7 +3,7 @@
 //! deterministic automata give counts derived by hand.
 
 use super::super::*;
-use super::{config, mean_se, paper};
+use super::{config, free_count_policy, mean_se, paper};
 use crate::engine::{Attacker, Engine, Move, PowerSchedule, DEFAULT_MAX_STATES};
 
 /// Mean and standard error of a per-run count.
@@ -168,16 +168,7 @@ fn mimicry_gives_the_attack_free_alarms() {
     // the attack-free one (the real losses go unflagged).
     let sys = paper();
     let design = OnlineDesign::fixed(2).unwrap();
-    let free = crate::flag_rates(0.5, design, None).unwrap().delivered * 1000.0;
-    let policy = Policy::Test {
-        detector: Detector::Count {
-            lo: (free - 15.0) as i64,
-            hi: (free + 15.0) as i64,
-        },
-        harmful_at_most: None,
-        fallback: 0,
-        min_gap: 3,
-    };
+    let policy = free_count_policy(15.0, 0, 3);
     let mimicry = AttackerAutomaton::mimicry(&Channel::bernoulli(0.5).unwrap(), design).unwrap();
     let mut cfg = config(None, policy);
     cfg.runs = 1024;
@@ -324,16 +315,7 @@ fn an_attack_and_an_automaton_together_are_refused() {
 fn lane_speed() {
     let sys = paper();
     let design = OnlineDesign::fixed(2).unwrap();
-    let free = crate::flag_rates(0.5, design, None).unwrap().delivered * 1000.0;
-    let count = Policy::Test {
-        detector: Detector::Count {
-            lo: (free - 40.0) as i64,
-            hi: (free + 40.0) as i64,
-        },
-        harmful_at_most: None,
-        fallback: 2,
-        min_gap: 0,
-    };
+    let count = free_count_policy(40.0, 2, 0);
     let periodic = Attack::periodic(1, 5).unwrap();
     let rate_matching = Attack::injection(0.0365, Some(Attack::random(0.2).unwrap())).unwrap();
     let auto = |a: &Attack| Some(AttackerAutomaton::from_attack(a, 1).unwrap());
