@@ -17,7 +17,7 @@ Rows (cells per second; the median of ``--repeats`` runs):
 * ``cluster``: the same on a ``dask.distributed.LocalCluster(n_workers=2, processes=True)`` (the
   compiled core limited to one thread per worker with ``RAYON_NUM_THREADS=1``) that is
   started (and warmed up with one tiny study) before timing.
-* ``local 1e5`` / ``cluster 1e5``: 100 x 1000 cells, where the issue asks the cluster to stay within
+* ``local 1e5`` / ``cluster 1e5``: 100 x 1000 cells, where the target asks the cluster to stay within
   20% of the local time.
 
 Usage::

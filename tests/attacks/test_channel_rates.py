@@ -108,8 +108,8 @@ def test_bursty_closed_forms(p, q):
         assert_allclose(blocked.blocked, blocked.sent, rtol=1e-15)
 
 
-def test_issue_number():
-    """The issue's sanity check: about 0.166 on GilbertElliott(0.1, 0.1, 1, 0) (1/7 i.i.d.)."""
+def test_the_bursty_online_rate_is_about_one_sixth():
+    """A sanity check: about 0.166 on GilbertElliott(0.1, 0.1, 1, 0) (1/7 i.i.d.)."""
     assert abs(fa.high_power_rate(fa.GilbertElliott(0.1, 0.1, 1, 0), 2) - 0.166) < 5e-4
 
 

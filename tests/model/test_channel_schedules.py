@@ -36,7 +36,7 @@ import reference_engine as ref  # noqa: E402
 
 S = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
 TR = S.h_traces(600)
-#: The issue's bursty channel: bad runs of mean length 10, nothing arrives at low power there.
+#: A bursty channel: bad runs of mean length 10, nothing arrives at low power there.
 BURSTY = fa.GilbertElliott(0.1, 0.1, 1, 0)
 #: A 3-state channel with a lossy high-power state (not reversible: cyclic transitions).
 M3 = fa.MarkovChannel(
@@ -170,8 +170,8 @@ def test_bursty_closed_forms(p, q):
     assert_allclose(j_offline(S, ge, pattern="0"), expected, rtol=1e-12)
 
 
-def test_the_issues_numbers():
-    """Sanity checks against the issue: the online rate about 0.166 (1/7 i.i.d.) and the evenly
+def test_the_bursty_channels_reference_numbers():
+    """Sanity checks against rough reference figures: the online rate about 0.166 (1/7 i.i.d.) and the evenly
     spread pattern about 3.94 (2.09 i.i.d.)."""
     assert abs(fa.high_power_rate(BURSTY, 2) - 0.166) < 5e-4
     assert abs(j_offline(S, BURSTY, pattern="1000000") - 3.94) < 5e-3

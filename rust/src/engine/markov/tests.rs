@@ -152,7 +152,7 @@ fn bad_input_is_refused() {
     assert!(periodic_j(&sys, &ch, d, 5, 5).is_err());
 }
 
-/// Time of the sweep the issue targets (< 1 s at t_max = 1000):
+/// Time of the sweep against its target in benches/README.md (< 1 s at t_max = 1000):
 /// `cargo test --release --lib engine::markov::tests::speed -- --ignored --nocapture`.
 #[test]
 #[ignore]

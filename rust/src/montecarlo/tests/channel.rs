@@ -85,7 +85,7 @@ fn exact(sys: &LinearSystem, cfg: &McConfig) -> (f64, f64) {
 }
 
 /// J_H within 4 standard errors of the exact engine's, and the high-power rate within its
-/// binomial tolerance of the stationary one, on both channels of the issue under every attack
+/// binomial tolerance of the stationary one, on the two Gilbert-Elliott channels of the tests under every attack
 /// kind the kernel takes, protocols A and B (the Python tests cover the same grid with more
 /// runs; this is the Rust side's own check, small in unoptimised builds).
 #[test]
