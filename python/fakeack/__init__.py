@@ -41,6 +41,8 @@ from .attacks import (
     worst_mask,
 )
 from .detection import (
+    CusumRunLength,
+    CusumTest,
     Detection,
     DetectionCurves,
     DetectionRates,
@@ -52,6 +54,8 @@ from .detection import (
     IntervalTest,
     delivered_flag_rate,
     detect_attack,
+    cusum_run_length,
+    cusum_threshold,
     detect_intervals,
     detection_curves,
     detection_probability,
@@ -121,6 +125,10 @@ __all__ = [
     "high_power_rate",
     "random_blocking_sweep",
     "rate_matching_attack",
+    "CusumRunLength",
+    "CusumTest",
+    "cusum_run_length",
+    "cusum_threshold",
     "Detection",
     "DetectionCurves",
     "DetectionRates",

@@ -9,7 +9,8 @@
 under any attack (``None``: the false-alarm rate), from the exact laws of
 ``fakeack.detection.intervals`` and the stated normal approximations. :func:`flag_process` gives
 the delivered flag-ACKs on any channel as a Markov arrival process over the exact engine's
-automaton: their rate, variance rate and the exact count law of a window.
+automaton: their rate, variance rate and the exact count law of a window. :class:`CusumTest` is
+the sequential test for an attack's onset, with its run lengths from :func:`cusum_run_length`.
 
 The interval statistic's law under an attack lives in ``interval_power`` (from the gap walk of
 ``intervals`` or the flag process's bin moments of ``gap_bins``); the support check's joint laws
@@ -18,12 +19,14 @@ with the count in ``process``.
 
 from .count import ALTERNATIVES, Detection, count_alarm_bounds, detect_attack, harmful_count_bound
 from .curves import DetectionCurves, detection_curves
+from .cusum import CusumIncrements, CusumTest
 from .flags import FlagRates, delivered_flag_rate, estimate_beta, flag_interval_moments, flag_rates
 from .interval_test import IntervalDetection, IntervalTest, detect_intervals, interval_test
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
 from .probability import TESTS, detection_probability
 from .process import FlagProcess, flag_process
 from .rates import DetectionRates, detection_rates
+from .run_length import CusumRunLength, cusum_run_length, cusum_threshold
 
 __all__ = [
     "flag_interval_moments",
@@ -52,4 +55,9 @@ __all__ = [
     "detection_rates",
     "FlagProcess",
     "flag_process",
+    "CusumTest",
+    "CusumIncrements",
+    "CusumRunLength",
+    "cusum_run_length",
+    "cusum_threshold",
 ]

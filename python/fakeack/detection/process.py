@@ -93,6 +93,8 @@ class FlagProcess:
     stationary: FloatArray = field(repr=False)
     initial: FloatArray = field(repr=False)
     """The paper's initial condition: high power at k = 1, memory restarted, c_1 stationary."""
+    labels: tuple[str, ...] = field(default=(), repr=False)
+    """The engine's label of each state (``c=... z=... power=... attacker=...``)."""
 
     @property
     def n_states(self) -> int:
@@ -434,4 +436,6 @@ def flag_process(channel: ChannelLike, design: OnlineDesign, attack: object = No
             break
         initial[i] = weights[int(m.group(1))]
     initial /= initial.sum()
-    return FlagProcess(ch, design, attack, rate, max(variance_rate, 0.0), D0, D1, pi, initial)
+    return FlagProcess(
+        ch, design, attack, rate, max(variance_rate, 0.0), D0, D1, pi, initial, tuple(auto.labels)
+    )
