@@ -3,6 +3,8 @@ exported from, the cost of the explicit chain of (tau, e) for one built by hand,
 matrices naming them."""
 
 import math
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -185,3 +187,64 @@ def test_sparse_and_dense_give_one_scenario():
     for conv in (sp.csr_array, sp.coo_array, sp.csc_matrix):
         assert fa.Scenario.from_automaton(S, conv(K0), conv(K1)).cost() == dense.cost()
     assert_array_equal(dense.automaton().K0.toarray(), K0)
+
+
+def ring(n, p_even=0.3, p_odd=0.7):
+    """n states in a ring, each step to the next; a packet arrives with probability p_even from
+    even states and p_odd from odd ones."""
+    i = np.arange(n)
+    p = np.where(i % 2 == 0, p_even, p_odd)
+    to = (i + 1) % n
+    return sp.csr_array((1 - p, (i, to)), shape=(n, n)), sp.csr_array((p, (i, to)), shape=(n, n))
+
+
+def alternating_cost(system, pa, pb):
+    """J when the arrival probability alternates pa, pb: after a step of either kind (half of all
+    steps each) the holding time is t with probability p_t prod_{s<t} (1 - p_s), going back over
+    the alternating steps."""
+    tr = ref.traces(system.A, system.Q, system.pbar, 400)
+    j = 0.0
+    for first, second in ((pa, pb), (pb, pa)):
+        lost = 1.0
+        for t in range(400):
+            p_here = first if t % 2 == 0 else second
+            j += 0.5 * lost * p_here * tr[t]
+            lost *= 1 - p_here
+    return j
+
+
+def test_a_ring_is_its_alternating_pair():
+    """A ring of any even length has the holding time of the two alternating states."""
+    want = alternating_cost(VEC, 0.3, 0.7)
+    for n in (2, 6, 1000):
+        assert_allclose(fa.Scenario.from_automaton(VEC, *ring(n)).cost(), want, rtol=1e-12)
+
+
+def test_gil_released_during_the_solve():
+    """Another Python thread keeps running while a solve runs; the automaton grows until one
+    solve lasts at least 0.3 s, so the check cannot pass by being too quick to measure.
+
+    Kills: running the solve without releasing the GIL (no py.detach in the binding)."""
+    n = 100_000
+    while True:
+        sc = fa.Scenario.from_automaton(VEC, *ring(n))
+        ticks = []
+        stop = threading.Event()
+
+        def count(ticks=ticks, stop=stop):
+            while not stop.is_set():
+                ticks.append(1)
+                time.sleep(0.001)
+
+        th = threading.Thread(target=count)
+        th.start()
+        t0 = time.monotonic()
+        sc.cost()
+        elapsed = time.monotonic() - t0
+        stop.set()
+        th.join()
+        if elapsed >= 0.3:
+            break
+        n *= 4
+    # At one tick per 1 ms sleep (plus scheduling), a GIL-free call of >= 0.3 s gives >= 60.
+    assert len(ticks) > 0.2 * elapsed / 0.001, (len(ticks), elapsed)
