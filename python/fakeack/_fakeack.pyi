@@ -125,6 +125,15 @@ class Engine:
         automaton: tuple[_Moves, _Moves, int] | None,
         max_states: int,
     ) -> Engine: ...
+    @staticmethod
+    def from_automaton(
+        n: int,
+        k0: _Coo,
+        k1: _Coo,
+        init: npt.NDArray[np.float64] | None,
+        labels: list[str] | None,
+        max_states: int,
+    ) -> Engine: ...
     @property
     def n_states(self) -> int: ...
     def cost(self, system: LinearSystem) -> float: ...

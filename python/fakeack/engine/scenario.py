@@ -9,8 +9,9 @@ solves the coupled Stein equations
    J = \mathrm{Tr} \sum_e \nu_e Z_e,
 
 with :math:`\nu = \pi_E K_1` and :math:`w = (I - K_0)^{-1}\mathbf 1` (docs page "The exact
-engine"). The computation is the compiled core's (``fakeack._fakeack.Engine``); this module
-validates the objects and converts them.
+engine"). An automaton built by hand, :math:`K_0` and :math:`K_1` only, is solved the same way
+(:meth:`Scenario.from_automaton`). The computation is the compiled core's
+(``fakeack._fakeack.Engine``); this module validates the objects and converts them.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from ..model.channels import Channel, as_channel
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
 from ..montecarlo.trace import TraceCurve
+from .automaton import automaton_args
 
 __all__ = [
     "Scenario",
@@ -102,6 +104,12 @@ class Scenario:
         so only the attack's blocking part acts (``fakeack.attacks.discard_forgeries``); the
         scenario's ``attack`` is then that part.
 
+    Attributes
+    ----------
+    system, channel, schedule, attack, max_states, authenticated
+        The arguments, as read; ``channel``, ``schedule`` and ``attack`` are None for a scenario
+        built by :meth:`from_automaton`.
+
     Raises
     ------
     TypeError, ValueError
@@ -130,40 +138,121 @@ class Scenario:
     ) -> None:
         self._core_system = compiled(system)
         self.system = system
-        self.channel: Channel = as_channel(channel, "channel")
-        self.schedule: OnlineDesign | OfflineSchedule = _schedule(schedule)
+        ch, sched = as_channel(channel, "channel"), _schedule(schedule)
+        self.channel: Channel | None = ch
+        self.schedule: OnlineDesign | OfflineSchedule | None = sched
         self.authenticated = bool(authenticated)
         if self.authenticated and attack is not None:
-            design = self.schedule if isinstance(self.schedule, OnlineDesign) else None
-            attack = discard_forgeries(attack, channel=self.channel, design=design)
+            design = sched if isinstance(sched, OnlineDesign) else None
+            attack = discard_forgeries(attack, channel=ch, design=design)
         self.attack: ScenarioAttack | None = _attack(attack)
         self.max_states = as_int("max_states", max_states, minimum=1)
-        if isinstance(self.schedule, OfflineSchedule) and self.attack is not None:
+        if isinstance(sched, OfflineSchedule) and self.attack is not None:
             raise ValueError("attack: an offline schedule ignores flag-ACKs, so an attack has no effect")
-        self._args = self._binding_args()
-        self._engine = _fakeack.Engine(*self._args)
+        self._engine = _fakeack.Engine(*self._binding_args(ch, sched))
+
+    @classmethod
+    def from_automaton(
+        cls,
+        system: LinearSystem,
+        K0: object,
+        K1: object,
+        *,
+        init: npt.ArrayLike | None = None,
+        labels: list[str] | None = None,
+        max_states: int = DEFAULT_MAX_STATES,
+    ) -> Scenario:
+        r"""A scenario whose automaton E is given: :math:`K_0` (loss) and :math:`K_1` (arrival).
+
+        For sensor policies, attackers and jammers the built-in parts do not cover: write the
+        finite state e that holds everything but the holding time :math:`\tau`, and split each
+        step's move by whether the packet is lost (:math:`K_0`, :math:`\tau \to \tau + 1`) or
+        arrives (:math:`K_1`, :math:`\tau \to 0`). The cost is the one of the built-in scenarios,
+
+        .. math:: Z_e = \bar P + (w_e - 1) Q + \sum_f K_0[e, f]\, A Z_f A', \qquad
+           J = \mathrm{Tr} \sum_e \nu_e Z_e,
+
+        with :math:`\nu = \pi_E K_1`, :math:`w = (I - K_0)^{-1}\mathbf 1` and :math:`\pi_E`
+        the long-run law of :math:`K = K_0 + K_1` from ``init`` (with several closed classes,
+        each weighted by the chance of ending in it); finite iff
+        :math:`\rho(K_0)\rho(A)^2 < 1`. :meth:`cost`, :meth:`stability_index`,
+        :meth:`holding_time_law`, :meth:`cost_curve` and :meth:`automaton` work as for any
+        scenario. The matrices carry no power or flag-ACK information, so
+        :meth:`high_power_rate`, :meth:`energy_per_step` and :meth:`flag_rates` raise
+        ValueError; ``channel``, ``schedule`` and ``attack`` are None.
+
+        Parameters
+        ----------
+        system : LinearSystem
+            The process and its sensor (the engine uses :math:`A`, :math:`Q` and :math:`\bar P`).
+        K0, K1 : scipy.sparse array or matrix, or 2-D array
+            Square, of one shape (n, n), entries finite and :math:`\ge 0`, each row of
+            :math:`K_0 + K_1` summing to 1 within 1e-12. ``K0[e, f]`` is the probability of
+            moving from e to f with a lost packet, ``K1[e, f]`` with an arrival.
+        init : array_like, keyword-only, optional
+            The law of :math:`e_0`, the state before step 1 (:math:`\tau_0 = 0`), for
+            :meth:`cost_curve` and to weigh closed classes; default: state 0 surely. Every state
+            must be reachable from it.
+        labels : list of str, keyword-only, optional
+            One name per state (default: its index), shown by :meth:`automaton` and in errors.
+        max_states : int, keyword-only, optional
+            Refuse (ValueError) more than this many states, before allocating (default 10^6).
+
+        Returns
+        -------
+        Scenario
+            With ``channel``, ``schedule`` and ``attack`` None.
+
+        Raises
+        ------
+        TypeError, ValueError
+            Naming ``K0``, ``K1`` (``K0 + K1`` for a row sum), ``init``, ``labels`` or
+            ``max_states``; ValueError naming ``K0`` when from some state no packet ever arrives
+            again (:math:`\rho(K_0) = 1`).
+
+        Examples
+        --------
+        One state in which each packet arrives with probability 0.6, so that
+        :math:`J = (\lambda \bar P + (1 - \lambda) Q) / (1 - (1 - \lambda) A^2)`:
+
+        >>> import fakeack as fa
+        >>> s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+        >>> sc = fa.Scenario.from_automaton(s, [[0.4]], [[0.6]])
+        >>> pbar = float(s.pbar[0, 0])
+        >>> abs(sc.cost() - (0.6 * pbar + 0.4 * 0.8) / (1 - 0.4 * 1.44)) < 1e-12
+        True
+        """
+        self = cls.__new__(cls)
+        self._core_system = compiled(system)
+        self.system = system
+        self.channel, self.schedule, self.attack = None, None, None
+        self.authenticated = False
+        args = automaton_args(K0, K1, init, labels, max_states)
+        self.max_states = args[-1]
+        self._engine = _fakeack.Engine.from_automaton(*args)
+        return self
 
     # --- conversion ----------------------------------------------------------------------------
 
-    def _binding_args(self) -> tuple[Any, ...]:
-        ch = self.channel
+    def _binding_args(self, ch: Channel, schedule: OnlineDesign | OfflineSchedule) -> tuple[Any, ...]:
         P, low, high = ch.P.tolist(), ch.low.tolist(), ch.high.tolist()
         offline: list[bool] | None = None
-        if isinstance(self.schedule, OfflineSchedule):
-            r = self.schedule.ratio
+        if isinstance(schedule, OfflineSchedule):
+            r = schedule.ratio
             if r is not None and r.denominator > MAX_OFFLINE_PERIOD:
                 raise ValueError(
                     f"schedule: an offline period of {r.denominator} steps exceeds {MAX_OFFLINE_PERIOD}"
                 )
-            offline = [bool(x) for x in self.schedule.pattern]
+            offline = [bool(x) for x in schedule.pattern]
             z0, mu = 1, 1.0
         else:
-            z0, mu = self.schedule.z0, self.schedule.mu
+            z0, mu = schedule.z0, schedule.mu
         att, min_gap, mimicry, automaton = None, 1, None, None
         a = self.attack
         if isinstance(a, MimicryAttack):
             vch = a.channel if a.channel is not None else ch
-            design = a.design if a.design is not None else self._design()
+            assert isinstance(schedule, OnlineDesign)  # offline scenarios take no attack
+            design = a.design if a.design is not None else schedule
             mimicry = (vch.P.tolist(), vch.low.tolist(), vch.high.tolist(), design.z0, design.mu)
         elif isinstance(a, AttackerAutomaton):
             automaton = (_transitions(a.flag), _transitions(a.quiet), a.start)
@@ -173,9 +262,13 @@ class Scenario:
                 min_gap = a.min_gap
         return (P, low, high, z0, mu, offline, att, min_gap, mimicry, automaton, self.max_states)
 
-    def _design(self) -> OnlineDesign:
-        assert isinstance(self.schedule, OnlineDesign)  # offline scenarios take no attack
-        return self.schedule
+    def _protocol(self, what: str) -> None:
+        """Refuses a quantity a scenario built from K0 and K1 does not know."""
+        if self.channel is None:
+            raise ValueError(
+                f"automaton: {what} needs a channel and a schedule; an automaton given as K0 and K1 "
+                "carries no power or flag-ACK information"
+            )
 
     # --- results -------------------------------------------------------------------------------
 
@@ -206,7 +299,14 @@ class Scenario:
         return float(self._engine.stability_index(self._core_system))
 
     def high_power_rate(self) -> float:
-        """The long-run fraction of steps at high power (online: the rate of flag-ACKs received)."""
+        """The long-run fraction of steps at high power (online: the rate of flag-ACKs received).
+
+        Raises
+        ------
+        ValueError
+            For a scenario built by :meth:`from_automaton`, which carries no power information.
+        """
+        self._protocol("high_power_rate")
         return float(self._engine.high_power_rate())
 
     def energy_per_step(self, Delta: float, delta: float) -> float:
@@ -216,7 +316,14 @@ class Scenario:
         ----------
         Delta, delta : float
             Energy of a high- and a low-power transmission, :math:`\Delta > \delta \ge 0`.
+
+        Raises
+        ------
+        ValueError
+            For invalid energies, and for a scenario built by :meth:`from_automaton`, which
+            carries no power information.
         """
+        self._protocol("energy_per_step")
         hi, lo = as_real("Delta", Delta), as_real("delta", delta)
         if lo < 0:
             raise ValueError(f"delta must be non-negative, got {lo}")
@@ -232,7 +339,14 @@ class Scenario:
         FlagRates
             ``(sent, delivered, forged)``; ``.blocked`` is ``sent - (delivered - forged)``, the
             genuine flag-ACKs that did not reach the sensor.
+
+        Raises
+        ------
+        ValueError
+            For a scenario built by :meth:`from_automaton`, which carries no flag-ACK
+            information.
         """
+        self._protocol("flag_rates")
         sent, delivered, forged = self._engine.flag_rates()
         return FlagRates(float(sent), float(delivered), float(forged))
 
@@ -256,7 +370,8 @@ class Scenario:
         r""":math:`\mathbb E\,\mathrm{Tr}\,P_k` and :math:`J_k` for k = 1..horizon, exactly.
 
         From the paper's initial condition (high power at k = 1, memory all ones, the attacker in
-        its start state, :math:`c_1` stationary); :math:`J_k` tends to :meth:`cost`.
+        its start state, :math:`c_1` stationary), or from ``init`` for :meth:`from_automaton`;
+        :math:`J_k` tends to :meth:`cost`.
 
         Parameters
         ----------
@@ -285,21 +400,24 @@ class Scenario:
     # --- display -------------------------------------------------------------------------------
 
     def __repr__(self) -> str:
+        if self.channel is None:
+            return f"Scenario.from_automaton(system={self.system!r}, n_states={self.n_states})"
         att = "" if self.attack is None else f", attack={self.attack!r}"
         return f"Scenario(system={self.system!r}, channel={self.channel!r}, schedule={self.schedule!r}{att})"
 
     def _repr_html_(self) -> str:
-        items: list[tuple[str, Any]] = [
-            ("channel", repr(self.channel)),
-            ("schedule", str(self.schedule)),
-            ("attack", "none" if self.attack is None else str(self.attack)),
-        ]
+        items: list[tuple[str, Any]] = (
+            [("automaton", "given as K0 and K1")]
+            if self.channel is None
+            else [
+                ("channel", repr(self.channel)),
+                ("schedule", str(self.schedule)),
+                ("attack", "none" if self.attack is None else str(self.attack)),
+            ]
+        )
         j = self.cost()
-        items += [
-            ("states of E", self.n_states),
-            ("J", j),
-            ("stability index", self.stability_index()),
-            ("high-power rate", self.high_power_rate()),
-        ]
+        items += [("states of E", self.n_states), ("J", j), ("stability index", self.stability_index())]
+        if self.channel is not None:
+            items.append(("high-power rate", self.high_power_rate()))
         note = "" if math.isfinite(j) else "J is infinite: rho(K0) rho(A)^2 >= 1."
         return key_values("Scenario", items, note)

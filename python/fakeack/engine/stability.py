@@ -260,6 +260,7 @@ def stability_region(
     max_states = as_int("max_states", max_states, minimum=1)
     probe = _scenario(system, GilbertElliott(0.5, 0.5, 1.0, 1.0), schedule, attack, max_states)
     sched, att = probe.schedule, probe.attack
+    assert sched is not None  # a scenario built from its parts has a schedule
     rho_a2 = float(system.spectral_radius) ** 2
     shape = (len(pg), len(qg))
     index, cost = np.zeros(shape), np.zeros(shape)

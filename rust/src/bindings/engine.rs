@@ -4,7 +4,7 @@
 
 use std::sync::atomic::AtomicBool;
 
-use numpy::{IntoPyArray, PyArray1};
+use numpy::{IntoPyArray, PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 
@@ -19,6 +19,22 @@ pub(super) type Moves = Vec<Vec<(f64, bool, usize)>>;
 
 /// The virtual system of the mimicry attacker: (P, low, high, z0, mu).
 type Virtual = (Vec<Vec<f64>>, Vec<f64>, Vec<f64>, u64, f64);
+
+/// K0 or K1 as (rows, cols, vals) arrays.
+type CooIn<'py> = (
+    PyReadonlyArray1<'py, i64>,
+    PyReadonlyArray1<'py, i64>,
+    PyReadonlyArray1<'py, f64>,
+);
+
+/// Owned copies of (rows, cols, vals), to cross into the solve without the GIL.
+fn owned(m: &CooIn<'_>) -> (Vec<i64>, Vec<i64>, Vec<f64>) {
+    (
+        m.0.as_array().to_vec(),
+        m.1.as_array().to_vec(),
+        m.2.as_array().to_vec(),
+    )
+}
 
 type Coo<'py> = (
     Bound<'py, PyArray1<i64>>,
@@ -128,6 +144,34 @@ impl PyEngine {
         );
         let inner = run(py, bound, |_| {
             Engine::new(&channel, &schedule, &attacker, max_states)
+        })?;
+        Ok(PyEngine { inner })
+    }
+
+    /// An automaton given as K0 and K1 (`Engine::from_automaton`).
+    #[staticmethod]
+    #[pyo3(signature = (n, k0, k1, init, labels, max_states))]
+    fn from_automaton(
+        py: Python<'_>,
+        n: usize,
+        k0: CooIn<'_>,
+        k1: CooIn<'_>,
+        init: Option<PyReadonlyArray1<'_, f64>>,
+        labels: Option<Vec<String>>,
+        max_states: usize,
+    ) -> PyResult<Self> {
+        let (k0, k1) = (owned(&k0), owned(&k1));
+        let init = init.map(|a| a.as_array().to_vec());
+        let size = (k0.0.len() + k1.0.len() + n) as u128;
+        let inner = run(py, size, |_| {
+            Engine::from_automaton(
+                n,
+                (&k0.0, &k0.1, &k0.2),
+                (&k1.0, &k1.1, &k1.2),
+                init.as_deref(),
+                labels,
+                max_states,
+            )
         })?;
         Ok(PyEngine { inner })
     }

@@ -28,11 +28,13 @@
 //! # The parts
 //! [`Channel`] (Markov, validated), [`PowerSchedule`] (online design or offline pattern),
 //! [`AttackerAutomaton`] (every built-in [`Attack`], injection with a minimum gap, mimicry, or
-//! given by hand), [`Engine`] (the explored product and its solves, independent of the system)
-//! and [`Scenario`] (a system with an engine).
+//! given by hand), [`Engine`] (the explored product and its solves, independent of the system;
+//! or an automaton given as K0 and K1, [`Engine::from_automaton`]) and [`Scenario`] (a system
+//! with an engine).
 
 pub mod attacker;
 pub mod channel;
+mod given;
 mod graph;
 pub mod linsolve;
 pub mod markov;
@@ -45,7 +47,8 @@ use std::sync::OnceLock;
 
 pub use attacker::{AttackerAutomaton, Move};
 pub use channel::Channel;
-pub use product::{PowerSchedule, Product, SparseRows, StateParts};
+pub use given::{Triplets, ROW_SUM_TOL};
+pub use product::{Explored, Origin, PowerSchedule, Product, SparseRows, StateParts};
 
 use crate::attack::Attack;
 use crate::chain::transient::MAX_WORK;
@@ -286,26 +289,30 @@ impl Engine {
         Ok(self.rho_k0_cancellable(cancel)? * r * r)
     }
 
-    /// Long-run fraction of steps at high power.
+    /// Long-run fraction of steps at high power; an error for an automaton given as K0 and K1
+    /// ([`Engine::from_automaton`]), which carries no power information.
     pub fn high_power_rate(&self) -> Result<f64> {
+        let explored = self.product.explored()?;
         let st = self.stationary()?;
         Ok(st
             .pi
             .iter()
-            .zip(&self.product.high_next)
+            .zip(&explored.high_next)
             .filter(|(_, &h)| h)
             .map(|(p, _)| p)
             .sum())
     }
 
-    /// Long-run flag-ACKs per step: sent by the detector, delivered to the sensor, forged.
+    /// Long-run flag-ACKs per step: sent by the detector, delivered to the sensor, forged; an
+    /// error for an automaton given as K0 and K1, which carries no flag-ACK information.
     pub fn flag_rates(&self) -> Result<FlagRates> {
+        let explored = self.product.explored()?;
         let pi = &self.stationary()?.pi;
         let dot = |v: &[f64]| pi.iter().zip(v).map(|(a, b)| a * b).sum::<f64>();
         Ok(FlagRates {
-            sent: dot(&self.product.sent),
-            delivered: dot(&self.product.delivered),
-            forged: dot(&self.product.forged),
+            sent: dot(&explored.sent),
+            delivered: dot(&explored.delivered),
+            forged: dot(&explored.forged),
         })
     }
 

@@ -95,17 +95,11 @@ pub struct StateParts {
     pub attacker: usize,
 }
 
-/// The explored product automaton.
+/// What each state of an explored product is and does at the next step.
 #[derive(Debug, Clone)]
-pub struct Product {
+pub struct Explored {
     /// Each state's parts, in breadth-first order (the initial states first).
     pub states: Vec<StateParts>,
-    /// Law of the state e_0 at k = 0 (before step 1).
-    pub init: Vec<f64>,
-    /// Transitions whose packet is lost.
-    pub k0: SparseRows,
-    /// Transitions whose packet arrives.
-    pub k1: SparseRows,
     /// Per state: 1 if the next step uses high power.
     pub high_next: Vec<bool>,
     /// Per state: probability that the next step sends a genuine flag-ACK.
@@ -116,6 +110,29 @@ pub struct Product {
     pub forged: Vec<f64>,
     /// Whether the schedule is online.
     pub online: bool,
+}
+
+/// Where a product's states come from.
+#[derive(Debug, Clone)]
+pub enum Origin {
+    /// Explored from a channel, a schedule and an attacker: what each state is and does.
+    Explored(Explored),
+    /// Given as K0 and K1 ([`crate::engine::Engine::from_automaton`]), with a label per state
+    /// if any (else its index): the states carry no power or flag-ACK information.
+    Given(Option<Vec<String>>),
+}
+
+/// The product automaton: its initial law and K = K0 + K1.
+#[derive(Debug, Clone)]
+pub struct Product {
+    /// Law of the state e_0 at k = 0 (before step 1).
+    pub init: Vec<f64>,
+    /// Transitions whose packet is lost.
+    pub k0: SparseRows,
+    /// Transitions whose packet arrives.
+    pub k1: SparseRows,
+    /// What the states are.
+    pub origin: Origin,
 }
 
 /// An upper bound on the product's states: K (z0 + 1) 2 |attacker| online, K |pattern| offline.
@@ -291,19 +308,21 @@ pub fn explore(
     }
     init.resize(states.len(), 0.0);
     Ok(Product {
-        states,
         init,
         k0,
         k1,
-        high_next,
-        sent,
-        delivered,
-        forged,
-        online,
+        origin: Origin::Explored(Explored {
+            states,
+            high_next,
+            sent,
+            delivered,
+            forged,
+            online,
+        }),
     })
 }
 
-fn push_row(m: &mut SparseRows, row: &mut [(u32, f64)]) {
+pub(crate) fn push_row(m: &mut SparseRows, row: &mut [(u32, f64)]) {
     row.sort_unstable_by_key(|e| e.0);
     let mut last = u32::MAX;
     for &(j, p) in row.iter() {
@@ -321,15 +340,32 @@ fn push_row(m: &mut SparseRows, row: &mut [(u32, f64)]) {
 impl Product {
     /// Number of states.
     pub fn n(&self) -> usize {
-        self.states.len()
+        self.k0.n()
+    }
+
+    /// What each state is and does, for an explored product; an error naming the automaton
+    /// for one given as K0 and K1, which carries no power or flag-ACK information.
+    pub fn explored(&self) -> Result<&Explored> {
+        match &self.origin {
+            Origin::Explored(p) => Ok(p),
+            Origin::Given(_) => Err(Error::invalid(
+                "automaton",
+                "an automaton given as K0 and K1 carries no power or flag-ACK information",
+            )),
+        }
     }
 
     /// A readable label per state.
     pub fn labels(&self) -> Vec<String> {
-        self.states
+        let p = match &self.origin {
+            Origin::Given(Some(labels)) => return labels.clone(),
+            Origin::Given(None) => return (0..self.n()).map(|i| i.to_string()).collect(),
+            Origin::Explored(p) => p,
+        };
+        p.states
             .iter()
             .map(|s| {
-                if self.online {
+                if p.online {
                     format!(
                         "c={} z={} power={} attacker={}",
                         s.channel,
