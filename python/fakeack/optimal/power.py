@@ -295,7 +295,13 @@ def _solve(
         b_eq=b_eq,
         bounds=cast(Any, np.column_stack([np.zeros(nvar), upper])),
         method="highs",
-        options={"primal_feasibility_tolerance": LP_TOL, "dual_feasibility_tolerance": LP_TOL},
+        # Presolve fails (status "Not Set") on the deep, tiny-cost columns of tau_max near 200;
+        # the LP is small and well scaled, so it is solved as it stands.
+        options={
+            "primal_feasibility_tolerance": LP_TOL,
+            "dual_feasibility_tolerance": LP_TOL,
+            "presolve": False,
+        },
     )
     if res.status != 0:
         raise ConvergenceError(f"the power LP (tau_max = {T}) was not solved: {res.message}")
