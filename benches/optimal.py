@@ -39,7 +39,8 @@ def main() -> None:
             walls.append(time.perf_counter() - w)
             cpus.append(time.process_time() - c)
         print(
-            f"{name}: wall {statistics.median(walls) * 1e3:.1f} ms, cpu {statistics.median(cpus) * 1e3:.1f} ms "
+            f"{name}: wall {statistics.median(walls) * 1e3:.1f} ms, "
+            f"cpu {statistics.median(cpus) * 1e3:.1f} ms "
             f"(J = {res.j:.6f}, tau_max {res.tau_max}; median of {args.repeat}; "
             f"load average {os.getloadavg()[0]:.2f})"
         )
