@@ -284,6 +284,15 @@ def test_policy_errors_name_the_argument(p, levels, name):
         HoldingTimePolicy(p, levels)
 
 
+def test_a_budget_that_affords_no_finite_cost_is_refused():
+    # lam = 0.25 at the cheapest level only: (1 - lam) rho(A)^2 = 1.08 >= 1, J diverges
+    levels = [(1.0, 0.25), (3.0, 1.0)]
+    with pytest.raises(ValueError, match="^tau_max: .* infinite cost"):
+        optimal_power_policy(SYSTEM, 0.25, levels, 1.0)
+    res = optimal_power_policy(SYSTEM, 0.25, levels, 1.0, tau_max=50)
+    assert res.j == np.inf and res.tail_bound == np.inf and np.isfinite(res.j_lp)
+
+
 def test_state_dependent_policy_needs_its_channel():
     with pytest.raises(ValueError, match="^channel"):
         HoldingTimePolicy([[1.0, 0.0]], GE_LEVELS).automaton()

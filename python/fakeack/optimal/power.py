@@ -18,6 +18,7 @@ channel's stationary marginal :math:`\sum_{t,l} x(t,c,l) = \pi_c`, and :math:`x 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, cast
 
@@ -73,7 +74,7 @@ class PowerPolicyResult:
     j_lp: float
     """The LP's optimal value: a lower bound on the optimum."""
     energy_per_step: float
-    """The exact long-run energy per step of ``policy``."""
+    """The exact long-run energy per step of ``policy`` (within the budget up to the LP's tolerance)."""
     policy: HoldingTimePolicy
     """The optimal policy (rows never visited hold the level most likely to arrive)."""
     tail_bound: float
@@ -155,7 +156,8 @@ def optimal_power_policy(
         ``csi`` False when arrivals depend on the state of a Markov channel (the sensor's belief
         of the state then depends on its whole ACK history, a partially observed problem that an
         LP over :math:`\tau` does not solve exactly; ``csi=True`` gives the full-information
-        optimum, a lower bound); ``tau_max`` when the automatic truncation reaches its cap.
+        optimum, a lower bound); ``tau_max`` when the automatic truncation reaches its cap or
+        finds only policies of infinite cost (a budget that affords no finite J).
     ConvergenceError
         If HiGHS does not solve the LP.
 
@@ -198,17 +200,28 @@ def optimal_power_policy(
         return _solve(
             system, ch, lv, budget_v, use_state, as_int("tau_max", tau_max, minimum=1, maximum=MAX_TAU)
         )
-    T = FIRST_TAU
+    T, prev = FIRST_TAU, None
     while True:
-        res = _solve(system, ch, lv, budget_v, use_state, T)
-        if res.tail_bound <= TAIL_RTOL * res.j:
+        try:
+            res = _solve(system, ch, lv, budget_v, use_state, T)
+        except ConvergenceError:
+            if prev is None or math.isfinite(prev.j):
+                raise
+            res = None  # after a diverging policy, masses that outgrow the scaling: the cost diverges
+        if res is not None and math.isfinite(res.j) and res.tail_bound <= TAIL_RTOL * res.j:
             return res
-        if 2 * T > MAX_AUTO_TAU:
+        if res is None or 2 * T > MAX_AUTO_TAU:
+            if res is None or not math.isfinite(res.j):
+                raise ValueError(
+                    f"tau_max: up to tau = {T} the LP's policy has an infinite cost (packets lost too often "
+                    "where tau is long): the budget may afford no finite cost. Give tau_max to see the "
+                    "truncated LP's value"
+                )
             raise ValueError(
                 f"tau_max: the tail beyond tau = {T} is not negligible (bound {res.tail_bound:.3g} against "
                 f"J = {res.j:.6g}); give tau_max to accept a truncated answer with its tail_bound"
             )
-        T *= 2
+        T, prev = 2 * T, res
 
 
 def _scale(lv: Levels, rho: float) -> float:
