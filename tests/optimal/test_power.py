@@ -51,7 +51,12 @@ def brute_force(system, p, energies, arrivals, P):
     A, Q = np.atleast_2d(system.A), np.atleast_2d(system.Q)
     rho2 = max(abs(np.linalg.eigvals(A))) ** 2
     worst_loss = max(1 - p[T, c] @ arrivals[c] for c in range(K))
-    N = T + 1 if worst_loss == 0 else T + 1 + int(np.ceil(np.log(1e-16) / np.log(worst_loss * rho2)))
+    decay = worst_loss * rho2
+    if decay >= 1:
+        return None  # the tail may carry an infinite cost: not truncated here
+    N = T + 1 if decay == 0 else T + 1 + int(np.ceil(np.log(1e-16) / np.log(decay)))
+    if N > 400:
+        return None  # a heavy (or infinite) tail: not truncated here
     n = (N + 1) * K
     M = np.zeros((n, n))
     energy_of = np.zeros(n)
@@ -296,3 +301,46 @@ def test_a_budget_that_affords_no_finite_cost_is_refused():
 def test_state_dependent_policy_needs_its_channel():
     with pytest.raises(ValueError, match="^channel"):
         HoldingTimePolicy([[1.0, 0.0]], GE_LEVELS).automaton()
+
+
+@pytest.mark.parametrize(
+    ("channel", "levels", "arrivals", "csi"),
+    [
+        (0.5, THREE, [[0.5, 0.8, 1.0]], False),
+        (
+            GE,
+            [(1.0, [0.9, 0.2]), (2.0, [0.95, 0.6]), (3.0, [1.0, 1.0])],
+            [[0.9, 0.95, 1.0], [0.2, 0.6, 1.0]],
+            True,
+        ),
+    ],
+)
+def test_no_random_policy_within_the_budget_beats_the_lp(channel, levels, arrivals, csi):
+    # The LP is a relaxation: every policy meeting the budget costs at least j_lp.
+    budget = 1.6
+    res = optimal_power_policy(SYSTEM, channel, levels, budget, csi=csi)
+    rng = np.random.default_rng(5)
+    K = len(arrivals)
+    P = np.ones((1, 1)) if K == 1 else GE.P
+    feasible = 0
+    for _ in range(150):
+        p = rng.dirichlet(np.full(3, 0.3), size=(5, K))
+        out = brute_force(SYSTEM, p, [1, 2, 3], arrivals, P)
+        if out is None:
+            continue
+        j, energy = out
+        if energy <= budget:
+            feasible += 1
+            assert j >= res.j_lp * (1 - 1e-9)
+    assert feasible >= 10
+
+
+def test_a_policy_that_never_arrives_in_its_tail():
+    # the sensor never transmits: all mass ends at tau >= tau_max, and J diverges
+    aut = HoldingTimePolicy([[1.0, 0.0], [1.0, 0.0]], [(0.0, 0.0), (3.0, 1.0)]).automaton()
+    assert aut.stationary.tolist() == [0.0, 1.0]
+    assert aut.energy_per_step == 0.0
+    assert _automaton_cost(SYSTEM, aut.K0, aut.K1) == np.inf
+    # from tau = 0 it always arrives, from tau >= 1 never: two closed classes, no stationary law
+    with pytest.raises(ValueError, match="^p: .* closed class"):
+        HoldingTimePolicy([[0.0, 1.0], [1.0, 0.0]], [(0.0, 0.0), (3.0, 1.0)]).automaton()

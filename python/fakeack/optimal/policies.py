@@ -11,6 +11,7 @@ coupled Stein equations (docs page "The exact engine").
 from __future__ import annotations
 
 import numbers
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -112,9 +113,16 @@ def stationary_law(K: sp.csr_array) -> FloatArray:
     M[n - 1, :] = np.ones(n)
     rhs = np.zeros(n)
     rhs[n - 1] = 1.0
-    pi = np.asarray(spla.spsolve(M.tocsc(), rhs), dtype=np.float64)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", spla.MatrixRankWarning)
+        try:
+            pi = np.asarray(spla.spsolve(M.tocsc(), rhs), dtype=np.float64)
+        except spla.MatrixRankWarning:
+            pi = np.full(n, np.nan)
     if not np.all(np.isfinite(pi)):
-        raise ValueError("policy: the automaton has no unique stationary law (more than one closed class)")
+        raise ValueError(
+            "p: the policy's automaton has no unique stationary law (more than one closed class)"
+        )
     pi = np.clip(pi, 0.0, None)
     return pi / pi.sum()
 
