@@ -45,6 +45,8 @@ DOCTEST_MODULES = [
     "engine.scenario",
     "engine.stability",
     "montecarlo.curves",
+    "optimal.policies",
+    "optimal.power",
 ]
 
 
