@@ -284,7 +284,7 @@ def _finite(
         tr = np.exp(np.minimum(logtr, 709.0))
         tr[logtr >= 709.0] = math.inf
         trace = np.concatenate([tr[1 : n + 1], np.full(T - n, tr[0])])
-        j = float((T - n) * tr[0] + tr[1 : n + 1].sum()) / T
+        j = float(_mean(trace[None, :])[0])
         return _finite_result(j, "closed form", T, n, tuple(range(1, n + 1)), trace)
     count = math.comb(T, n)
     if count <= MAX_EXHAUSTIVE:
@@ -300,7 +300,7 @@ def _finite(
                 idx = np.array(chunk)
                 jam[np.arange(len(chunk))[:, None], idx] = True
             traces = expected_traces(ch, arrival, jam, logtr)
-            js = traces.mean(axis=1)
+            js = _mean(traces)
             i = int(np.argmax(js))
             if js[i] > best_j:
                 best_j, best_steps, best_trace = float(js[i]), tuple(int(v) + 1 for v in chunk[i]), traces[i]
@@ -311,7 +311,7 @@ def _finite(
     for b in range(blocks):
         jam[b, b : b + n] = True
     traces = expected_traces(ch, arrival, jam, logtr)
-    js = traces.mean(axis=1)
+    js = _mean(traces)
     b = int(np.argmax(js))
     return _finite_result(
         float(js[b]), "best consecutive block", T, n, tuple(range(b + 1, b + n + 1)), traces[b]
@@ -331,6 +331,12 @@ def _finite_result(
     j: float, method: str, T: int, n: int, steps: tuple[int, ...], trace: FloatArray
 ) -> JammingResult:
     return JammingResult(j, method, T, n, steps, _frozen(trace), None, None, None, None, None, None, None)
+
+
+def _mean(traces: FloatArray) -> FloatArray:
+    """Row means, ``inf`` only when the mean itself passes the double range (terms divided first)."""
+    with np.errstate(over="ignore"):
+        return np.asarray(np.sum(traces / traces.shape[1], axis=1), dtype=np.float64)
 
 
 def _frozen(values: FloatArray) -> FloatArray:

@@ -1,0 +1,222 @@
+"""optimal_jamming: the finite-horizon open-loop jammer and the long-run jammer that sees τ.
+
+Every expected value comes from a route written here: the law of τ_k in product form (an arrival
+at step k - m, then m losses), exact enumeration of channel paths for a Markov channel, all jam
+subsets enumerated, a Monte Carlo of the jammed protocol, and for the long run the renewal-reward
+formula over cycles that start at an arrival (not the stationary law nor the Stein equation that
+the package uses).
+"""
+
+import itertools
+import math
+import time
+
+import numpy as np
+import pytest
+
+import fakeack as fa
+import reference as ref
+from conftest import PAPER, names
+from fakeack.optimal import JammingResult, optimal_jamming
+
+LAM = 0.5
+
+
+@pytest.fixture(scope="module")
+def paper():
+    return fa.LinearSystem(**PAPER)
+
+
+@pytest.fixture(scope="module")
+def stable():
+    """rho(A) = 0.9: the long-run J is bounded whatever the jammer does."""
+    return fa.LinearSystem(0.9, 0.7, 0.8, 0.8)
+
+
+def traces(system, n):
+    pbar = ref.pbar_scipy(system.A, system.C, system.Q, system.R)
+    return ref.traces(system.A, system.Q, pbar, n)
+
+
+def tau_law(p):
+    """law[s, k-1, m] = P(tau_k = m) for arrival probabilities p[s, j-1] at steps j (0 = jammed),
+    tau_0 = 0: the last arrival at step k - m and none after, or none at all (m = k)."""
+    S, T = p.shape
+    law = np.zeros((S, T, T + 1))
+    for k in range(1, T + 1):
+        run = np.ones(S)
+        for m in range(k):
+            law[:, k - 1, m] = p[:, k - m - 1] * run
+            run = run * (1 - p[:, k - m - 1])
+        law[:, k - 1, k] = run
+    return law
+
+
+def masks_of(T, sets):
+    jam = np.zeros((len(sets), T), dtype=bool)
+    for i, s in enumerate(sets):
+        jam[i, list(s)] = True
+    return jam
+
+
+def j_bernoulli(tr, lam, jam, levels=None):
+    """J of each jam mask on the paper's channel (levels: 1 = high power, arrives surely)."""
+    p = np.where(jam, 0.0, lam if levels is None else np.where(levels, 1.0, lam))
+    return (tau_law(p) @ tr[: jam.shape[1] + 1]).mean(axis=1)
+
+
+# ---------------------------------------------------------------- finite horizon, ideal channel
+
+
+def test_ideal_channel_closed_form_and_every_block(paper):
+    """(T - n) tr_0 + tr_1 + ... + tr_n over T: a run of l jams costs tr_1 + ... + tr_l and the
+    other steps tr_0; every block of n consecutive jams gives it, a split block less."""
+    T, n = 12, 4
+    tr = traces(paper, T)
+    closed = ((T - n) * tr[0] + tr[1 : n + 1].sum()) / T
+    res = optimal_jamming(paper, 1.0, n, T)
+    assert isinstance(res, JammingResult) and res.method == "closed form"
+    assert res.j == pytest.approx(closed, rel=1e-12)
+    assert res.jammed_steps == tuple(range(res.jammed_steps[0], res.jammed_steps[0] + n))
+    blocks = [range(b, b + n) for b in range(T - n + 1)]
+    np.testing.assert_allclose(j_bernoulli(tr, 1.0, masks_of(T, blocks)), closed, rtol=1e-12)
+    split = j_bernoulli(tr, 1.0, masks_of(T, [(0, 1, 5, 6)]))[0]
+    assert split < closed - 1e-3
+    np.testing.assert_allclose(res.trace.mean(), res.j, rtol=1e-14)
+    # a Markov channel whose packets all arrive is ideal too
+    ideal = fa.MarkovChannel([[0.9, 0.1], [0.5, 0.5]], [1.0, 1.0], [1.0, 1.0])
+    assert optimal_jamming(paper, ideal, n, T).j == pytest.approx(closed, rel=1e-12)
+
+
+# ---------------------------------------------------------------- finite horizon, lossy channel
+
+
+@pytest.mark.parametrize("T", [8, 12])
+def test_exhaustive_over_all_subsets_on_the_paper_channel(paper, T):
+    """All 2^T jam sets: the optimum with at most n jams uses exactly n (more jams never help),
+    the package finds it, and on the paper's system at lam = 1/2 it is a consecutive block."""
+    tr = traces(paper, T)
+    sets = [s for k in range(T + 1) for s in itertools.combinations(range(T), k)]
+    js = j_bernoulli(tr, LAM, masks_of(T, sets))
+    sizes = np.array([len(s) for s in sets])
+    for n in range(T + 1):
+        best_at_most = js[sizes <= n].max()
+        best_exactly = js[sizes == n].max()
+        assert best_exactly == pytest.approx(best_at_most, rel=1e-13)
+        res = optimal_jamming(paper, LAM, n, T)
+        assert res.method == "exhaustive"
+        assert res.j == pytest.approx(best_at_most, rel=1e-12)
+        steps = res.jammed_steps
+        assert len(steps) == n and list(steps) == sorted(steps)
+        assert n == 0 or steps[-1] - steps[0] == n - 1  # a consecutive block
+        assert j_bernoulli(tr, LAM, masks_of(T, [[s - 1 for s in steps]]))[0] == pytest.approx(res.j, rel=1e-12)
+
+
+def test_horizon_20_exhaustive_and_the_block_scan(paper):
+    """T = 20, n = 5 (15504 schedules) and n = 15: the exhaustive optimum is the best block; the
+    block scan alone (above the exhaustive budget) returns the same block."""
+    T = 20
+    tr = traces(paper, T)
+    for n in (5, 15):
+        sets = list(itertools.combinations(range(T), n))
+        js = j_bernoulli(tr, LAM, masks_of(T, sets))
+        blocks = j_bernoulli(tr, LAM, masks_of(T, [range(b, b + n) for b in range(T - n + 1)]))
+        assert js.max() == pytest.approx(blocks.max(), rel=1e-13)
+        res = optimal_jamming(paper, LAM, n, T)
+        assert res.method == "exhaustive" and res.j == pytest.approx(js.max(), rel=1e-12)
+    from fakeack.optimal import jamming
+
+    old = jamming.MAX_EXHAUSTIVE
+    try:
+        jamming.MAX_EXHAUSTIVE = 10
+        res = optimal_jamming(paper, LAM, 5, T)
+    finally:
+        jamming.MAX_EXHAUSTIVE = old
+    assert res.method == "best consecutive block"
+    n = 5
+    blocks = j_bernoulli(tr, LAM, masks_of(T, [range(b, b + n) for b in range(T - n + 1)]))
+    assert res.j == pytest.approx(blocks.max(), rel=1e-12)
+    # the blocks at b and T - n + 2 - b tie (reversal symmetry): any of the best will do
+    assert blocks[res.jammed_steps[0] - 1] == pytest.approx(blocks.max(), rel=1e-12)
+
+
+def test_offline_schedule_levels(paper):
+    """An offline pattern: high-power steps arrive surely unless jammed."""
+    T, n = 10, 3
+    tr = traces(paper, T)
+    sched = fa.OfflineSchedule(pattern="1000")
+    levels = np.array([1, 0, 0, 0] * 3)[:T].astype(bool)
+    sets = list(itertools.combinations(range(T), n))
+    js = j_bernoulli(tr, LAM, masks_of(T, sets), levels)
+    res = optimal_jamming(paper, LAM, n, T, schedule=sched)
+    assert res.j == pytest.approx(js.max(), rel=1e-12)
+
+
+def test_markov_channel_by_enumerating_channel_paths(paper):
+    """Gilbert-Elliott channel, T = 7: E Tr P_k averaged over every channel path (stationary
+    start), each path giving independent arrivals; every jam set of size 3 compared."""
+    T, n = 7, 3
+    ch = fa.GilbertElliott(0.2, 0.4, 0.9, 0.1)
+    tr = traces(paper, T)
+    pi = np.array([0.4 / 0.6, 0.2 / 0.6])
+    P = np.array([[0.8, 0.2], [0.4, 0.6]])
+    low = np.array([0.9, 0.1])
+    sets = list(itertools.combinations(range(T), n))
+    jam = masks_of(T, sets)
+    total = np.zeros(len(sets))
+    for path in itertools.product((0, 1), repeat=T):
+        prob = pi[path[0]] * np.prod([P[a, b] for a, b in zip(path, path[1:], strict=False)])
+        total += prob * j_bernoulli(tr, low[list(path)], jam)
+    res = optimal_jamming(paper, ch, n, T)
+    assert res.method == "exhaustive" and res.j == pytest.approx(total.max(), rel=1e-12)
+    assert total[sets.index(tuple(s - 1 for s in res.jammed_steps))] == pytest.approx(total.max(), rel=1e-12)
+
+
+def test_monte_carlo_of_the_jammed_protocol(paper):
+    """20000 runs of the protocol (a jam adds one to tau, an unjammed packet arrives with lam):
+    the average of Tr P_k agrees with J within 4 standard errors, and so does each step."""
+    T, n, runs = 30, 8, 20_000
+    res = optimal_jamming(paper, LAM, n, T)
+    assert res.method == "best consecutive block"
+    jammed = np.zeros(T + 1, dtype=bool)
+    jammed[list(res.jammed_steps)] = True
+    tr = traces(paper, T)
+    rng = np.random.default_rng(7)
+    tau = np.zeros(runs, dtype=np.int64)
+    costs = np.empty((runs, T))
+    for k in range(1, T + 1):
+        arrived = ~jammed[k] & (rng.random(runs) < LAM)
+        tau = np.where(arrived, 0, tau + 1)
+        costs[:, k - 1] = tr[tau]
+    per_run = costs.mean(axis=1)
+    se = per_run.std(ddof=1) / math.sqrt(runs)
+    assert abs(per_run.mean() - res.j) < 4 * se
+    se_k = costs.std(axis=0, ddof=1) / math.sqrt(runs)
+    assert np.all(np.abs(costs.mean(axis=0) - res.trace) < 4 * se_k + 1e-12)
+
+
+def test_long_horizon_with_traces_beyond_the_double_range(paper):
+    """T = 2000 on the paper's system: Tr h^2000(P̄) ~ 1e317 overflows but is reached only with
+    probability 2^-2000; J is finite and matches the product form in logarithms. A block of 2085
+    jams makes J exceed the double range (a lower bound in logs shows it): inf, never NaN."""
+    T = 2000
+    # scalar system: h^m(p) = A^(2m) p + Q (A^(2m) - 1) / (A^2 - 1), in logarithms
+    pbar, c, m = ref.pbar_scipy(1.2, 0.7, 0.8, 0.8)[0, 0], 0.8 / 0.44, np.arange(T + 1)
+    log_tr = m * math.log(1.44) + np.log(pbar + c - c * 1.44 ** (-m))
+    j = 0.0
+    for k in range(1, T + 1):
+        m = np.arange(k + 1)
+        logp = np.where(m < k, np.log(LAM), 0.0) + m * np.log(1 - LAM)
+        j += np.exp(logp + log_tr[: k + 1]).sum()
+    res = optimal_jamming(paper, LAM, 0, T)
+    assert res.j == pytest.approx(j / T, rel=1e-9)
+    big = optimal_jamming(paper, LAM, 2085, 2100)
+    assert 2085 * math.log(1.44) - math.log(2100) > 709.8 and big.j == math.inf
+
+
+def test_speed_of_the_finite_horizon(paper):
+    """T = 100, n = 30: the block scan on a lossy channel and the closed form, each under 1 s."""
+    for channel in (LAM, 1.0):
+        t = time.perf_counter()
+        optimal_jamming(paper, channel, 30, 100)
+        assert time.perf_counter() - t < 1.0
