@@ -109,7 +109,9 @@ def test_exhaustive_over_all_subsets_on_the_paper_channel(paper, T):
         steps = res.jammed_steps
         assert len(steps) == n and list(steps) == sorted(steps)
         assert n == 0 or steps[-1] - steps[0] == n - 1  # a consecutive block
-        assert j_bernoulli(tr, LAM, masks_of(T, [[s - 1 for s in steps]]))[0] == pytest.approx(res.j, rel=1e-12)
+        assert j_bernoulli(tr, LAM, masks_of(T, [[s - 1 for s in steps]]))[0] == pytest.approx(
+            res.j, rel=1e-12
+        )
 
 
 def test_horizon_20_exhaustive_and_the_block_scan(paper):
@@ -220,3 +222,180 @@ def test_speed_of_the_finite_horizon(paper):
         t = time.perf_counter()
         optimal_jamming(paper, channel, 30, 100)
         assert time.perf_counter() - t < 1.0
+
+
+# ---------------------------------------------------------------- long run
+
+
+def scalar_traces(system):
+    """tr_i = A^(2i) (p - c) + c with c = Q / (1 - A^2), exact for a scalar system (A^2 != 1)."""
+    A2, Q = float(system.A[0, 0]) ** 2, float(system.Q[0, 0])
+    p = ref.pbar_scipy(system.A, system.C, system.Q, system.R)[0, 0]
+    c = Q / (1 - A2)
+    return A2, p, c
+
+
+def renewal(system, lam, idle):
+    """(J, jammed fraction) of the policy by renewal-reward over cycles from an arrival: the chain
+    reaches s <= M with probability prod_{t<s} g_t and then stays 1/(lam idle_M) steps in M, where
+    tau - M is geometric; the sum over that tail is closed (scalar traces)."""
+    A2, p, c = scalar_traces(system)
+    M = len(idle) - 1
+    x, leave = 1 - idle, lam * idle
+    g = 1 - leave
+    reach = np.concatenate(([1.0], np.cumprod(g[:M])))
+    s = np.arange(M)
+    tr = lambda i: A2**i * (p - c) + c  # noqa: E731
+    cost_below = reach[:M] @ (leave[:M] * tr(0) + g[:M] * tr(s + 1))
+    gm, lm = g[M], leave[M]
+    if gm * A2 >= 1:
+        return math.inf, None
+    tail = A2 ** (M + 1) * (p - c) / (1 - gm * A2) + c / lm  # sum_j g^j tr_{M+1+j}; 1 - g = lm
+    length = reach[:M].sum() + reach[M] / lm
+    cost = cost_below + reach[M] * (tr(0) + gm * tail)
+    jams = reach[:M] @ x[:M] + reach[M] * x[M] / lm
+    return cost / length, jams / length
+
+
+def families(M):
+    """Jam-when-m <= tau < m + L windows below M, and jam-with-p-once-tau >= m thresholds."""
+    for m in range(M):
+        for L in range(1, M - m + 1):
+            idle = np.ones(M + 1)
+            idle[m : m + L] = 0.0
+            yield idle
+    for m in range(M + 1):
+        for p in np.linspace(0.02, 0.98, 49):
+            idle = np.ones(M + 1)
+            idle[m:] = 1 - p
+            yield idle
+
+
+def best_in_families(system, lam, rate, M):
+    best = -math.inf
+    for idle in families(M):
+        j, f = renewal(system, lam, idle)
+        if f is not None and f <= rate:
+            best = max(best, j)
+    return best
+
+
+def check_policy(system, res, lam):
+    """The returned J and fraction by renewal-reward; feasible; within the LP's bracket."""
+    j, f = renewal(system, lam, res.idle_probability)
+    assert res.method == "linear program"
+    assert res.j == pytest.approx(j, rel=1e-9)
+    assert res.jammed_fraction == pytest.approx(f, rel=1e-9, abs=1e-15)
+    assert f <= res.rate * (1 + 1e-12)
+    np.testing.assert_allclose(res.jam_probability, 1 - res.idle_probability, atol=1e-15)
+    assert res.j_lp * (1 - 1e-9) <= res.j <= (res.j_lp + res.tail_bound) * (1 + 1e-9)
+
+
+@pytest.mark.parametrize(("lam", "rate", "tau_max"), [(0.5, 0.1, 10), (0.3, 0.2, 8), (0.5, 0.05, 12)])
+def test_long_run_lp_against_windows_and_thresholds(stable, lam, rate, tau_max):
+    res = optimal_jamming(stable, lam, rate=rate, tau_max=tau_max)
+    check_policy(stable, res, lam)
+    best = best_in_families(stable, lam, rate, tau_max)
+    assert res.j >= best - 1e-9 * best
+    assert res.j <= (res.j_lp + res.tail_bound) * (1 + 1e-9)
+
+
+def test_long_run_optimum_at_tau_max_200(stable):
+    """tau_max = 200: the optimum never jams below tau_max and jams there with probability
+    1 - O(2^-200), so that fraction r of the time tau is huge and costs tr_inf while the rest
+    follows the unjammed chain: J = (1 - r) J_unjammed + r tr_inf, with J_unjammed =
+    lam sum_i (1-lam)^i tr_i = lam [(p - c)/(1 - (1-lam) A^2) + c/lam] (scalar traces)."""
+    lam, rate = 0.5, 0.1
+    A2, p, c = scalar_traces(stable)
+    j_unjammed = lam * ((p - c) / (1 - (1 - lam) * A2) + c / lam)
+    assert j_unjammed == pytest.approx(fa.j_max(stable, lam), rel=1e-12)
+    res = optimal_jamming(stable, lam, rate=rate, tau_max=200)
+    check_policy(stable, res, lam)
+    assert res.j == pytest.approx((1 - rate) * j_unjammed + rate * c, rel=1e-9)
+    assert np.all(res.jam_probability[:200] == 0.0) and 0 < res.idle_probability[200] < 1e-50
+
+
+def test_long_run_with_an_unstable_process(paper):
+    """rho(A) = 1.2, tau_max = 5, rate 1/100: bounded (holding x* = 7/18 beyond tau_max would cost
+    more than the rate); every window and threshold policy stays within j_lp + tail_bound. At
+    tau_max = 8 that holding policy fits the rate and J is infinite."""
+    lam, rate = 0.5, 0.01
+    x_star = 1 - (1 - 1 / 1.44) / lam
+    for M, bounded in ((5, True), (8, False)):
+        hold = np.ones(M + 1)
+        hold[M] = 1 - x_star
+        _, f_star = renewal(paper, lam, hold * (1 + 1e-12))  # just inside g rho^2 < 1
+        assert (f_star > rate) == bounded
+        res = optimal_jamming(paper, lam, rate=rate, tau_max=M)
+        if bounded:
+            check_policy(paper, res, lam)
+            best = best_in_families(paper, lam, rate, M)
+            assert best <= (res.j_lp + res.tail_bound) * (1 + 1e-9)
+            assert res.j >= best - res.tail_bound
+        else:
+            assert res.method == "unbounded" and res.j == math.inf
+            assert (1 - lam * res.idle_probability[M]) * 1.44 >= 1 - 1e-12
+            # the witness's fraction (at g rho^2 = 1 exactly the renewal tail diverges; nudge idle)
+            nudged = res.idle_probability.copy()
+            nudged[M] *= 1 + 1e-9
+            assert renewal(paper, lam, nudged)[1] <= rate
+
+
+def test_long_run_unbounded_cases(paper):
+    """The paper's example at tau_max = 200: any rate > 0 makes J infinite. At lam = 0.2,
+    (1 - lam) rho^2 = 1.152 >= 1: J is infinite without any jamming (the witness never jams)."""
+    res = optimal_jamming(paper, LAM, rate=0.1)
+    assert res.method == "unbounded" and res.j == math.inf and res.jammed_fraction < 1e-50
+    res = optimal_jamming(paper, 0.2, rate=0.1)
+    assert res.method == "unbounded" and not res.jam_probability.any() and res.jammed_fraction == 0.0
+
+
+def test_long_run_without_budget_is_the_unjammed_cost(stable):
+    res = optimal_jamming(stable, LAM, rate=0.0, tau_max=30)
+    assert res.j == pytest.approx(fa.j_max(stable, LAM), rel=1e-9) and res.jammed_fraction == 0.0
+
+
+def test_long_run_with_every_step_jammed_is_the_trace_limit(stable):
+    """rate = 1: jam for ever, tau grows without end: J = lim tr_i = Q / (1 - A^2)."""
+    res = optimal_jamming(stable, LAM, rate=1.0, tau_max=20)
+    assert res.j == pytest.approx(0.8 / (1 - 0.81), rel=1e-9)
+
+
+# ---------------------------------------------------------------- arguments
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "exc", "arg"),
+    [
+        (dict(n_jams=11, horizon=10), ValueError, "n_jams"),
+        (dict(n_jams=-1, horizon=10), ValueError, "n_jams"),
+        (dict(n_jams=2.5, horizon=10), TypeError, "n_jams"),
+        (dict(n_jams=1, horizon=0), ValueError, "horizon"),
+        (dict(horizon=10), TypeError, "n_jams"),
+        (dict(n_jams=1), TypeError, "horizon"),
+        (dict(n_jams=1, horizon=10, rate=0.1), TypeError, "horizon"),
+        (dict(rate=1.5), ValueError, "rate"),
+        (dict(rate=-0.1), ValueError, "rate"),
+        (dict(rate=0.1, n_jams=3), TypeError, "n_jams"),
+        (dict(rate=0.1, tau_max=0), ValueError, "tau_max"),
+        (dict(rate=0.1, schedule=fa.OfflineSchedule(pattern="10")), TypeError, "schedule"),
+        (dict(n_jams=1, horizon=5, schedule="10"), TypeError, "schedule"),
+    ],
+)
+def test_arguments_are_named(stable, kwargs, exc, arg):
+    with pytest.raises(exc, match=names(arg)):
+        optimal_jamming(stable, LAM, **kwargs)
+
+
+def test_channel_and_system_arguments(stable):
+    with pytest.raises(ValueError, match=names("channel")):
+        optimal_jamming(stable, 1.5, 1, 5)
+    with pytest.raises(TypeError, match=names("system")):
+        optimal_jamming("A", LAM, 1, 5)
+    ge = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
+    with pytest.raises(ValueError, match=names("channel")):
+        optimal_jamming(stable, ge, rate=0.1)
+    with pytest.raises(ValueError, match=names("channel")):
+        optimal_jamming(stable, 1.0, rate=0.1)
+    with pytest.raises(ValueError, match=names("horizon")):
+        optimal_jamming(stable, LAM, 3000, 6000)
