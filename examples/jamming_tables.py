@@ -36,9 +36,8 @@ def block_j(system: fa.LinearSystem, lam: float, T: int, steps: range) -> float:
 def finite() -> None:
     T = 20
     print(f"finite horizon T = {T}, paper's system, lam = {LAM} (tau_0 = 0)")
-    print(
-        "| n | J optimal | method | optimal jammed steps | J block 1..n | J block ending at T | J ideal channel |"
-    )
+    print("| n | J optimal | method | optimal jammed steps | J block 1..n | J block ending at T |", end="")
+    print(" J ideal channel |")
     print("|---|---|---|---|---|---|---|")
     for n in (1, 2, 3, 5, 8, 10, 15, 20):
         r = optimal_jamming(PAPER, LAM, n, T)
@@ -77,12 +76,10 @@ def structure() -> None:
 
 def longrun() -> None:
     lim_j, tr_inf = fa.j_max(STABLE, LAM), 0.8 / (1 - 0.81)
-    print(
-        f"long run, A = 0.9 (C, Q, R of the paper), lam = {LAM}; unjammed J = {lim_j:.6g}, tr_inf = {tr_inf:.6g}"
-    )
-    print(
-        "| rate | tau_max | J | j_lp | tail_bound | jammed below tau_max | jam prob. at tau_max | (1-r) J + r tr_inf |"
-    )
+    print(f"long run, A = 0.9 (C, Q, R of the paper), lam = {LAM}; ", end="")
+    print(f"unjammed J = {lim_j:.6g}, tr_inf = {tr_inf:.6g}")
+    print("| rate | tau_max | J | j_lp | tail_bound | jammed below tau_max | jam prob. at tau_max |", end="")
+    print(" (1-r) J + r tr_inf |")
     print("|---|---|---|---|---|---|---|---|")
     for rate in (0.01, 0.1, 0.3):
         for m in (5, 10, 20, 200):
