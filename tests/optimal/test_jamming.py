@@ -361,6 +361,27 @@ def test_long_run_with_every_step_jammed_is_the_trace_limit(stable):
     assert res.j == pytest.approx(0.8 / (1 - 0.81), rel=1e-9)
 
 
+def test_long_run_hard_cases():
+    """Cases that need care: a far state carrying the scale floor (lam = 0.8, tau_max = 200, where
+    HiGHS's simplex gives up and its interior-point solver answers), rho(A) = 1 (bounded, with a
+    huge tail bound), a 2x2 system (the bracket and the rate), and lam = 0.99 at tau_max = 200,
+    where the optimal policy's probabilities leave the double range (refused, naming tau_max)."""
+    fast = fa.LinearSystem(0.5, 1.0, 1.0, 1.0)
+    for lam, rate in ((0.8, 0.01), (0.8, 0.2)):
+        res = optimal_jamming(fast, lam, rate=rate, tau_max=200)
+        check_policy(fast, res, lam)
+    marginal = fa.LinearSystem(1.0, 1.0, 1.0, 1.0)
+    res = optimal_jamming(marginal, LAM, rate=0.1, tau_max=10)
+    assert res.method == "linear program" and res.j_lp <= res.j <= res.j_lp + res.tail_bound
+    two = fa.LinearSystem([[0.8, 0.3], [0.0, 0.7]], [[1.0, 0.0]], np.eye(2), 1.0)
+    for rate, m in ((0.05, 10), (0.2, 200)):
+        res = optimal_jamming(two, 0.3, rate=rate, tau_max=m)
+        assert res.j_lp * (1 - 1e-9) <= res.j <= (res.j_lp + res.tail_bound) * (1 + 1e-9)
+        assert res.jammed_fraction <= rate
+    with pytest.raises(ValueError, match=names("tau_max")):
+        optimal_jamming(fa.LinearSystem(0.9, 0.7, 0.8, 0.8), 0.99, rate=0.1, tau_max=200)
+
+
 # ---------------------------------------------------------------- arguments
 
 

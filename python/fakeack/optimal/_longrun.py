@@ -11,7 +11,7 @@ the cost in state M depends on how far τ is beyond M.
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 from scipy.linalg import solve_discrete_lyapunov
@@ -26,6 +26,8 @@ __all__ = ["LongRun", "solve_long_run", "policy_cost", "unbounded_witness"]
 
 #: Occupation masses below this (relative to the unjammed profile) count as unvisited states.
 _UNVISITED = 1e-9
+#: Relative slack of the check j_lp <= J <= j_lp + tail_bound (HiGHS's tolerances are 1e-7).
+_CERTIFY = 1e-6
 #: Jam probabilities at τ_max above 1 - this are refined by the rate (see solve_long_run).
 _POLISH = 1e-6
 #: Floor of the column scale w_s: HiGHS drops matrix entries below 1e-9, and the normalisation
@@ -171,16 +173,22 @@ def tail_bound(system: LinearSystem, lam: float, rate: float, tau_max: int) -> f
         Ak = np.linalg.matrix_power(A, M + 1)
         return max(0.0, float(np.trace(Ak @ D @ Ak.T)))
     a = 1.0 - lam
-    if lam == 1.0:
-        g_max = 0.0  # rate 0 (the only bounded case): nobody jams, M is never reached
+    if lam == 1.0 or rate == 0.0:
+        # lam = 1 is bounded only at rate 0: nobody jams and M is never reached. At rate 0 the
+        # hold probability is 0 (g = 1 - lam).
+        leave_max = 1.0 if lam == 1.0 else lam
     else:
+        # x π_M(x) = rate with no jams below M: 1 - x = b (1 - r) / (b + r S), S = Σ_{s<M} a^s,
+        # b = a^M / λ, written so that 1 - g = λ (1 - x) keeps its precision when x is near 1.
         below, beyond = (1.0 - a**M) / lam, a**M / lam
-        x_max = rate * (below + beyond) / (beyond + rate * below)  # x π_M(x) = rate, no jams below M
-        g_max = 1.0 - (1.0 - x_max) * lam
+        leave_max = lam * beyond * (1.0 - rate) / (beyond + rate * below)
+    g_max = 1.0 - leave_max
     if g_max == 0.0:
         return 0.0
+    if leave_max == 0.0:
+        return math.inf
     _, Y, scale = log_traces(system, M + 1)
-    log_sum = _log_tail(system, 1.0 - g_max, Y, scale) - math.log(1.0 - g_max)
+    log_sum = _log_tail(system, leave_max, Y, scale) - math.log(leave_max)
     return _log_sum([math.log(g_max) + log_sum])
 
 
@@ -222,9 +230,26 @@ def solve_long_run(system: LinearSystem, lam: float, rate: float, tau_max: int) 
     b_eq[-1] = 1.0
     A_ub = np.zeros((1, 2 * (M + 1)))
     A_ub[0, 1::2] = w
-    res = linprog(
-        -cost / unit, A_ub=A_ub, b_ub=[rate], A_eq=A_eq, b_eq=b_eq, bounds=(0, None), method="highs"
+    attempts: tuple[tuple[Literal["highs", "highs-ipm"], dict[str, bool]], ...] = (
+        ("highs", {}),
+        ("highs", {"presolve": False}),
+        ("highs-ipm", {}),
     )
+    for method, options in attempts:
+        # HiGHS's presolve, and at times its simplex, give up (status "Not Set") on a few long
+        # chains whose far states carry the floored scale; its interior-point solver does not.
+        res = linprog(  # type: ignore[call-overload]  # the stubs type method="highs" alone
+            -cost / unit,
+            A_ub=A_ub,
+            b_ub=[rate],
+            A_eq=A_eq,
+            b_eq=b_eq,
+            bounds=(0, None),
+            method=method,
+            options=options,
+        )
+        if res.status == 0:
+            break
     if res.status != 0 or res.x is None or res.fun is None:
         raise RuntimeError(f"rate: the jamming LP failed ({res.message})")
     z = np.asarray(res.x).reshape(M + 1, 2)
@@ -241,6 +266,12 @@ def solve_long_run(system: LinearSystem, lam: float, rate: float, tau_max: int) 
         # up are below HiGHS's tolerances): fix it by the rate, which such a policy meets (a
         # hair inside, so that rounding cannot push the fraction over).
         idle[M] = _idle_for_rate(lam, idle, rate * (1.0 - 1e-12))
+        if idle[M] == 0.0 and rate < 1.0:
+            hint = max(1, int(600.0 / -math.log(1.0 - lam))) if lam < 1.0 else 1
+            raise ValueError(
+                f"tau_max = {M}: the optimal policy reaches tau_max with a probability below the double "
+                f"range and then jams with a probability within it of 1; use tau_max <= {hint} at lam = {lam}"
+            )
     j, fraction = policy_cost(system, lam, idle)
     for _ in range(0 if polish else 3):
         if fraction <= rate:
@@ -248,6 +279,11 @@ def solve_long_run(system: LinearSystem, lam: float, rate: float, tau_max: int) 
         # HiGHS meets the rate within its tolerance (1e-7): shrink the policy into it.
         idle = 1.0 - (1.0 - idle) * (rate / fraction)
         j, fraction = policy_cost(system, lam, idle)
+    if not (j_lp * (1.0 - _CERTIFY) - 1e-12 <= j <= (j_lp + bound) * (1.0 + _CERTIFY) + 1e-12):
+        raise RuntimeError(
+            f"rate: the LP's policy has J = {j!r}, outside [j_lp, j_lp + tail_bound] = "
+            f"[{j_lp!r}, {j_lp + bound!r}]; the LP solution cannot be certified"
+        )
     return LongRun(idle, j_lp, j, bound, fraction)
 
 
