@@ -157,7 +157,19 @@ def optimal_jamming(
         missing with ``horizon`` or given with ``rate``, a schedule with ``rate``.
     ValueError
         ``n_jams`` above ``horizon`` or negative, ``rate`` outside [0, 1], a horizon too long to
-        evaluate (the message says the work), a long run on a channel with memory.
+        evaluate (the message says the work), a long run on a channel with memory or on an ideal
+        channel with :math:`\rho(A) < 1` (the optimum is not attained), a ``tau_max`` at which the
+        optimal policy's probabilities leave the double range (the message gives a smaller one).
+    RuntimeError
+        If HiGHS fails, or its policy's exact J falls outside [``j_lp``, ``j_lp + tail_bound``]
+        (never observed; the result would not be certified).
+
+    Notes
+    -----
+    On the paper's channel and on Markov channels at one power level, every exhaustive optimum
+    found (T <= 20) is a block of consecutive jams, in the middle of the horizon; under an offline
+    schedule it is not (the jammer goes for the high-power steps), so there the block scan beyond
+    ``MAX_EXHAUSTIVE`` is only a lower bound on the optimum.
 
     Examples
     --------
@@ -208,6 +220,10 @@ def optimal_jamming(
 def _long_run(system: LinearSystem, lam: float, rate: float, tau_max: int) -> JammingResult:
     witness = unbounded_witness(system, lam, rate, tau_max)
     if witness is not None:
+        # _policy_cost is the exact J and jammed fraction of a policy on min(τ, τ_max): the
+        # stationary law plus the geometric tail. The engine's fa.Scenario.from_automaton(system,
+        # K0, K1), with the jammer as an automaton on s = min(τ, τ_max) (K1 the kernel of a jammed
+        # step), computes the same and can take its place here and in solve_long_run.
         _, fraction = _policy_cost(system, lam, 1.0 - witness)
         return JammingResult(
             math.inf,
