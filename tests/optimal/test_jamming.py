@@ -401,6 +401,8 @@ def test_long_run_hard_cases():
         (dict(rate=0.1, tau_max=0), ValueError, "tau_max"),
         (dict(rate=0.1, schedule=fa.OfflineSchedule(pattern="10")), TypeError, "schedule"),
         (dict(n_jams=1, horizon=5, schedule="10"), TypeError, "schedule"),
+        (dict(n_jams=1, horizon=5, tau_max=10), TypeError, "tau_max"),
+        (dict(rate=0.1, tau_max=2001), ValueError, "tau_max"),
     ],
 )
 def test_arguments_are_named(stable, kwargs, exc, arg):

@@ -37,6 +37,8 @@ MAX_EXHAUSTIVE = 200_000
 _MAX_WORK = 4e8
 #: Schedules evaluated together (memory: this x (T + 1) x K doubles).
 _CHUNK = 8192
+#: τ_max of the long run when none is given.
+DEFAULT_TAU = 200
 #: Largest τ_max accepted.
 MAX_TAU = 2000
 
@@ -91,7 +93,7 @@ def optimal_jamming(
     *,
     schedule: OfflineSchedule | None = None,
     rate: float | None = None,
-    tau_max: int = 200,
+    tau_max: int | None = None,
 ) -> JammingResult:
     r"""The jamming of the data channel that maximises the estimation error.
 
@@ -144,7 +146,7 @@ def optimal_jamming(
     rate : float, optional
         Largest long-run jammed fraction, in [0, 1].
     tau_max : int, optional
-        Long run: the jam probability depends on min(τ, τ_max) (default 200, at most 2000).
+        Long run only: the jam probability depends on min(τ, τ_max) (default 200, at most 2000).
 
     Returns
     -------
@@ -154,7 +156,8 @@ def optimal_jamming(
     ------
     TypeError
         For a wrong kind of argument, both or neither of ``horizon`` and ``rate``, ``n_jams``
-        missing with ``horizon`` or given with ``rate``, a schedule with ``rate``.
+        missing with ``horizon`` or given with ``rate``, a schedule with ``rate``, ``tau_max``
+        with ``horizon``.
     ValueError
         ``n_jams`` above ``horizon`` or negative, ``rate`` outside [0, 1], a horizon too long to
         evaluate (the message says the work), a long run on a channel with memory or on an ideal
@@ -194,7 +197,7 @@ def optimal_jamming(
         if schedule is not None:
             raise TypeError("schedule applies to a finite horizon; the long run has one power level")
         r = as_probability("rate", rate, closed=True)
-        m = as_int("tau_max", tau_max, minimum=1, maximum=MAX_TAU)
+        m = as_int("tau_max", DEFAULT_TAU if tau_max is None else tau_max, minimum=1, maximum=MAX_TAU)
         if ch.n_states != 1:
             raise ValueError(
                 "channel: the long run needs a one-state channel (the jammer sees τ, not the channel's state)"
@@ -206,6 +209,8 @@ def optimal_jamming(
                 "ever more rarely and for ever longer, and is not attained; use a finite horizon"
             )
         return _long_run(system, lam, r, m)
+    if tau_max is not None:
+        raise TypeError("tau_max applies to the long run (rate); a finite horizon has no τ cap")
     T = as_int("horizon", horizon, minimum=1)
     if n_jams is None:
         raise TypeError("n_jams is missing: the number of steps the jammer may jam in the horizon")
