@@ -1,11 +1,13 @@
-"""Optimal schedules as linear programs.
+"""Optimal attacks and schedules: the sensor's and the attacker's best choices, computed exactly.
 
 :func:`optimal_power_policy` solves the sensor's power problem (the least long-run cost within an
 energy budget, knowing the holding time from per-packet ACKs and possibly the channel state) as an
 average-cost constrained MDP over occupation measures; :class:`HoldingTimePolicy` is the kind of
-policy it returns, evaluated exactly as an automaton of the engine.
+policy it returns, evaluated exactly as an automaton of the engine. :func:`optimal_jamming` gives
+the jammer's best schedule against the data channel, over a finite horizon or in the long run.
 """
 
+from .jamming import JammingResult, optimal_jamming
 from .policies import HoldingTimePolicy, PolicyAutomaton
 from .power import PowerPolicyResult, optimal_power_policy
 
@@ -14,4 +16,6 @@ __all__ = [
     "PolicyAutomaton",
     "PowerPolicyResult",
     "optimal_power_policy",
+    "JammingResult",
+    "optimal_jamming",
 ]
