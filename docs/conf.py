@@ -66,6 +66,7 @@ API_SECTIONS = {
     "fakeack.montecarlo": "Monte Carlo and exact finite-horizon curves",
     "fakeack.detection": "Detecting an attack",
     "fakeack.game": "The game with an attacker who must not be seen",
+    "fakeack.optimal": "Optimal attacks and schedules",
     "fakeack.studies": "Parameter studies",
     "fakeack.plots": "Figures",
     "constants": "Limits and exceptions",

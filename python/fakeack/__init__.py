@@ -52,10 +52,10 @@ from .detection import (
     IntervalDetection,
     IntervalLaw,
     IntervalTest,
-    delivered_flag_rate,
-    detect_attack,
     cusum_run_length,
     cusum_threshold,
+    delivered_flag_rate,
+    detect_attack,
     detect_intervals,
     detection_curves,
     detection_probability,
@@ -103,6 +103,13 @@ from .montecarlo import (
     TraceCurve,
     expected_trace_curve,
     simulate,
+)
+from .optimal import (
+    HoldingTimePolicy,
+    JammingResult,
+    PowerPolicyResult,
+    optimal_jamming,
+    optimal_power_policy,
 )
 from .plots import (
     plot_detection_curves,
@@ -157,6 +164,11 @@ __all__ = [
     "Scenario",
     "stability_region",
     "StabilityRegion",
+    "HoldingTimePolicy",
+    "JammingResult",
+    "PowerPolicyResult",
+    "optimal_jamming",
+    "optimal_power_policy",
     "GameSimulation",
     "GameSolution",
     "Payoff",

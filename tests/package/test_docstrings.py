@@ -47,6 +47,7 @@ DOCTEST_MODULES = [
     "montecarlo.curves",
     "optimal.policies",
     "optimal.power",
+    "optimal.jamming",
 ]
 
 

@@ -26,13 +26,13 @@ import numpy as np
 import numpy.typing as npt
 import scipy.linalg as sla
 import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 from scipy.optimize import linprog
-from scipy.sparse.csgraph import connected_components
+from scipy.sparse.csgraph import breadth_first_order
 
 from .._fakeack import ConvergenceError
 from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_real
+from ..engine.scenario import Scenario
 from ..model.channels import Channel, ChannelLike, as_channel
 from ..model.system import LinearSystem, compiled
 from .policies import HoldingTimePolicy, LevelLike, Levels, as_levels, stationary_law
@@ -363,38 +363,20 @@ def _tail_bound(system: LinearSystem, policy: HoldingTimePolicy, pi: FloatArray,
         return float(m_T * a_T * np.trace(W))
 
 
-def _spectral_radius(K0: sp.csr_array) -> float:
-    """rho(K0) as the largest over its strongly connected components (each one small)."""
-    n_comp, label = connected_components(K0, directed=True, connection="strong")
-    dense_rows = K0.tocsr()
-    best = 0.0
-    for comp in range(n_comp):
-        idx = np.flatnonzero(label == comp)
-        block = dense_rows[idx][:, idx].toarray()
-        if block.any():
-            best = max(best, float(np.max(np.abs(np.linalg.eigvals(block)))))
-    return best
-
-
-# Exact J of an automaton (K0, K1) by the engine's coupled Stein equations, written in Python.
-# LEAD: replace by fakeack.Scenario.from_automaton(system, K0, K1).cost() once that is merged.
 def _automaton_cost(system: LinearSystem, K0: sp.csr_array, K1: sp.csr_array) -> float:
-    r"""J of the automaton ``(K0, K1)``: :math:`Z_e = \bar P + (w_e - 1)Q + \sum_f K_0[e,f] A Z_f A'`,
-    :math:`J = \mathrm{Tr}\sum_e \nu_e Z_e`, :math:`\nu = \pi K_1`, :math:`w = (I - K_0)^{-1}\mathbf 1`
-    (docs page "The exact engine"); ``inf`` when :math:`\rho(K_0)\rho(A)^2 \ge 1`."""
+    r"""J of the automaton ``(K0, K1)`` by the exact engine (:meth:`fakeack.Scenario.from_automaton`):
+    :math:`Z_e = \bar P + (w_e - 1)Q + \sum_f K_0[e,f] A Z_f A'`, :math:`J = \mathrm{Tr}\sum_e \nu_e Z_e`,
+    :math:`\nu = \pi K_1`, :math:`w = (I - K_0)^{-1}\mathbf 1`; ``inf`` when
+    :math:`\rho(K_0)\rho(A)^2 \ge 1`. Only the states the chain visits in the long run are
+    passed (a policy's unvisited rows, e.g. past a threshold whose level always arrives, are
+    unreachable, which the engine refuses)."""
     K0, K1 = sp.csr_array(K0), sp.csr_array(K1)
-    if _spectral_radius(K0) * system.spectral_radius**2 >= 1.0:
+    K = sp.csr_array(K0 + K1)
+    pi = stationary_law(K)
+    # The closed class: every state reachable from the likeliest one (the chain is a unichain).
+    keep = np.sort(breadth_first_order(K, int(np.argmax(pi)), directed=True, return_predecessors=False))
+    sub0, sub1 = K0[keep][:, keep], K1[keep][:, keep]
+    if sub1.sum() == 0.0:  # the closed class never arrives: tau grows without end
         return float("inf")
-    n = K0.shape[0]
-    pi = stationary_law(sp.csr_array(K0 + K1))
-    nu = pi @ K1
-    eye = sp.identity(n, format="csc")
-    w = spla.spsolve(sp.csc_array(eye - K0), np.ones(n))
-    A, Q, pbar = system.A, system.Q, system.pbar
-    nx = A.shape[0]
-    AA = np.kron(A, A)  # vec(A Z A') = (A kron A) vec(Z), column-major vec
-    M = sp.identity(n * nx * nx, format="csc") - sp.kron(K0, sp.csr_array(AA), format="csc")
-    rhs = (pbar.ravel(order="F")[None, :] + (w - 1.0)[:, None] * Q.ravel(order="F")[None, :]).ravel()
-    z = np.asarray(spla.spsolve(M, rhs)).reshape(n, nx * nx)
-    traces = z[:, :: nx + 1].sum(axis=1)  # Tr Z_e: the diagonal of each column-major vec
-    return float(nu @ traces)
+    init = np.clip(pi[keep], 0.0, None)
+    return Scenario.from_automaton(system, sub0, sub1, init=init / init.sum()).cost()
