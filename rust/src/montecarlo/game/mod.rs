@@ -111,7 +111,7 @@ use crate::system::LinearSystem;
 
 /// Runs simulated in lock-step by one kernel call.
 pub const LANES: usize = 8;
-/// Most runs in one call (per-run results take 40 bytes each).
+/// Most runs in one call (per-run results take 48 bytes each).
 pub const MAX_RUNS: u64 = 1 << 24;
 /// Longest table of Tr h^τ(P̄).
 pub const MAX_TRACE_TABLE: usize = 1 << 14;
