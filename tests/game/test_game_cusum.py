@@ -221,3 +221,26 @@ def test_the_kernel_checks_its_cusum_argument(system):
         run("cusum", ([1.0], [1.0], -1.0))
     with pytest.raises(ValueError, match="^inc_quiet"):
         run("cusum", ([1.0], [1.0, 2.0], 1.0))
+
+
+def test_increments_as_an_object_with_flag_and_quiet(system):
+    """increments() may give an object with ``flag`` and ``quiet`` (fakeack.CusumIncrements) as
+    well as a pair: the same game, bit for bit."""
+
+    @dataclass(frozen=True)
+    class Tables:
+        flag: np.ndarray
+        quiet: np.ndarray
+
+    @dataclass(frozen=True)
+    class AsObject(Statistic):
+        def increments(self, channel, design):
+            return Tables(*super().increments(channel, design))
+
+    args = dict(horizon=2000, runs=16, seed=2, n_steps=40, burn_in=0)
+    pair = fa.SensorPolicy("cusum", fallback=2, cusum=STAT)
+    obj = fa.SensorPolicy("cusum", fallback=2, cusum=AsObject(STAT.flag, STAT.quiet, STAT.threshold))
+    a = fa.simulate_game(system, LAM, RATIO, pair, **args)
+    b = fa.simulate_game(system, LAM, RATIO, obj, **args)
+    assert np.array_equal(a.alarms_per_run, b.alarms_per_run) and a.j == b.j
+    assert a.alarms_per_run.sum() > 0
