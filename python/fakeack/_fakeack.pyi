@@ -257,4 +257,5 @@ def simulate_game(
     min_gap: int = 0,
     automaton: tuple[list[list[tuple[float, bool, int]]], list[list[tuple[float, bool, int]]], int]
     | None = None,
+    cusum: tuple[list[float], list[float], float] | None = None,
 ) -> dict[str, Any]: ...

@@ -77,6 +77,8 @@ def channel_game(
         kernel = ("offline", -1, 0, [], [], 0.0, None, 0)
     elif policy.test == "never":
         kernel = ("online", -1, 0, [], [], 0.0, None, 0)
+    elif policy.test == "cusum":  # its statistic goes as the kernel's `cusum` argument
+        kernel = ("cusum", -1, 0, [], [], 0.0, None, cast(int, policy.fallback))
     elif policy.test == "interval":
         raise ValueError(
             "policy: the interval test's law assumes independent gaps between flag-ACKs, which holds "

@@ -285,5 +285,7 @@ def game_payoff(
     """
     if not isinstance(policy, SensorPolicy):
         raise TypeError(f"policy must be a fakeack.SensorPolicy, got {type(policy).__name__}")
+    if policy.test == "cusum":
+        raise ValueError("policy: the window formula has no CUSUM; fakeack.simulate_game plays it")
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
     return _payoff(setting, policy, played_attack(setting, as_game_attack(attack), authenticated))

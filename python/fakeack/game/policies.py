@@ -1,11 +1,13 @@
-"""The sensor's policies in the game: which test it runs on each window, at which level, and how
-long it falls back to the offline schedule after an alarm (see :mod:`fakeack.game`)."""
+"""The sensor's policies in the game: which test it runs on each window (or, for the CUSUM, at
+each step), at which level, and how long it falls back to the offline schedule after an alarm
+(see :mod:`fakeack.game`)."""
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
-from typing import TypeVar, cast
+from typing import Any, Protocol, TypeVar, cast
 
 import numpy as np
 
@@ -13,8 +15,28 @@ from .._internal.validate import as_int, as_probability
 from ..detection.count import check_alternative
 
 __all__ = [
+    "CusumStatistic",
     "SensorPolicy",
 ]
+
+
+class CusumStatistic(Protocol):
+    """What a CUSUM policy needs of its statistic (:class:`fakeack.CusumTest` has it).
+
+    ``threshold`` is the alarm threshold h (finite, > 0); ``increments(channel, design)`` gives
+    the increments of W per gap y = 1..Y (the last entry for every longer gap) at a step where a
+    flag-ACK reaches the sensor and at a silent one: a pair ``(flag, quiet)`` of equal-length float
+    arrays, or an object with ``flag`` and ``quiet`` attributes; entries may be +inf or -inf.
+    """
+
+    @property
+    def threshold(self) -> float:
+        """The alarm threshold h."""
+        ...
+
+    def increments(self, channel: Any, design: Any) -> Any:
+        """The increments of W under ``channel`` and the online ``design``."""
+        ...
 
 
 RULES = ("any", "harmful")
@@ -37,21 +59,39 @@ class SensorPolicy:
     ``SensorPolicy("offline")`` (always offline) and ``SensorPolicy("never")`` (online, never
     test).
 
+    ``SensorPolicy("cusum", fallback=K, cusum=c)``: run online with the CUSUM statistic W of ``c``
+    (a :class:`fakeack.CusumTest`) updated at every online step, W <- max(0, W + inc) with the
+    increment of the step's outcome (a flag-ACK or silence) at the current gap; an alarm
+    (W >= h) sends the sensor offline for K windows, after which it returns online with W = 0
+    and the statistic dormant until the first flag-ACK reaches it. Every alarm triggers the
+    fall-back (``rule="any"``); its level is its threshold (no ``alpha``) and its +inf increments
+    are its support check (no ``support``). Only :func:`fakeack.simulate_game` plays it.
+
     Parameters
     ----------
-    test : {"count", "interval", "offline", "never"}
+    test : {"count", "interval", "cusum", "offline", "never"}
         The test, or a special policy.
     alpha : float
-        False-alarm level per window, in (0, 1) (tests only).
+        False-alarm level per window, in (0, 1) (the count and interval tests only).
     fallback : int
-        Offline windows after a triggering alarm, >= 0 (tests only).
+        Offline windows after a triggering alarm, >= 0 (tests and the CUSUM).
     rule : {"any", "harmful"}, optional
         Which alarms trigger the fall-back (default "any").
     alternative : {"two-sided", "less", "greater"}, optional
         The count test's alternative (default two-sided; the interval test is two-sided).
     support : bool, optional
-        Whether the sensor also runs the support check (tests only; default True). Its alarms
-        follow ``rule`` as the test's do.
+        Whether the sensor also runs the support check (the count and interval tests only;
+        default True). Its alarms follow ``rule`` as the test's do.
+    cusum : CusumStatistic, optional
+        The CUSUM's statistic (``test="cusum"`` only): its ``threshold`` and ``increments``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown test or rule, or an argument the test does not take (named first).
+    TypeError
+        When a test lacks ``alpha`` or ``fallback``, or ``cusum`` lacks ``threshold`` or
+        ``increments``.
 
     Examples
     --------
@@ -69,7 +109,9 @@ class SensorPolicy:
     rule: str = "any"
     alternative: str = "two-sided"
     support: bool = True
-    """The support check (False for the special policies, which test nothing)."""
+    """The support check (False for the special policies, which test nothing, and the CUSUM)."""
+    cusum: CusumStatistic | None = None
+    """The CUSUM's statistic (None for the other policies)."""
 
     def __init__(
         self,
@@ -79,7 +121,14 @@ class SensorPolicy:
         rule: str = "any",
         alternative: str = "two-sided",
         support: bool | None = None,
+        cusum: CusumStatistic | None = None,
     ) -> None:
+        object.__setattr__(self, "cusum", None)
+        if test == "cusum":
+            self._init_cusum(fallback, cusum, alpha, rule, alternative, support)
+            return
+        if cusum is not None:
+            raise ValueError(f"cusum: only the test 'cusum' takes a CUSUM statistic, not {test!r}")
         if test in _SPECIAL:
             if alpha is not None or fallback is not None or support is not None:
                 raise ValueError(f"test: the special policy {test!r} takes no alpha, fallback or support")
@@ -91,7 +140,7 @@ class SensorPolicy:
             object.__setattr__(self, "support", False)
             return
         if test not in ("count", "interval"):
-            raise ValueError(f"test must be 'count', 'interval', 'offline' or 'never', got {test!r}")
+            raise ValueError(f"test must be 'count', 'interval', 'cusum', 'offline' or 'never', got {test!r}")
         if alpha is None or fallback is None:
             raise TypeError(f"test {test!r} needs alpha and fallback")
         if rule not in RULES:
@@ -110,6 +159,39 @@ class SensorPolicy:
             raise TypeError(f"support must be True or False, got {support!r}")
         object.__setattr__(self, "support", bool(support))
 
+    def _init_cusum(
+        self,
+        fallback: int | None,
+        cusum: CusumStatistic | None,
+        alpha: float | None,
+        rule: str,
+        alternative: str,
+        support: bool | None,
+    ) -> None:
+        """The fields of a CUSUM policy, checked."""
+        if cusum is None or fallback is None:
+            raise TypeError("test 'cusum' needs fallback and cusum")
+        if not (hasattr(cusum, "threshold") and callable(getattr(cusum, "increments", None))):
+            raise TypeError(
+                "cusum must have a threshold and an increments method (a fakeack.CusumTest), "
+                f"got {type(cusum).__name__}"
+            )
+        if alpha is not None:
+            raise ValueError("alpha: the CUSUM's level is its threshold; it takes no alpha")
+        if rule != "any":
+            raise ValueError(f"rule: every alarm of the CUSUM triggers the fall-back ('any'), got {rule!r}")
+        if alternative != "two-sided":
+            raise ValueError("alternative: the CUSUM's alternative is in its statistic")
+        if support:
+            raise ValueError("support: the CUSUM's +inf increments are its support check")
+        object.__setattr__(self, "test", "cusum")
+        object.__setattr__(self, "alpha", None)
+        object.__setattr__(self, "fallback", as_int("fallback", fallback, minimum=0))
+        object.__setattr__(self, "rule", "any")
+        object.__setattr__(self, "alternative", "two-sided")
+        object.__setattr__(self, "support", False)
+        object.__setattr__(self, "cusum", cusum)
+
     @property
     def special(self) -> bool:
         """True for ``"offline"`` and ``"never"``."""
@@ -118,8 +200,14 @@ class SensorPolicy:
     def __str__(self) -> str:
         if self.special:
             return _SPECIAL[self.test]
-        side = "" if self.test == "interval" or self.alternative == "two-sided" else f" ({self.alternative})"
         windows = "window" if self.fallback == 1 else "windows"
+        if self.test == "cusum":
+            c = self.cusum
+            against = getattr(c, "alternative", None)
+            what = "" if against is None else f", against {_alternative(against)}"
+            h = float(getattr(c, "threshold", math.nan))
+            return f"CUSUM (h={h:g}{what}), {self.fallback} {windows} offline after an alarm"
+        side = "" if self.test == "interval" or self.alternative == "two-sided" else f" ({self.alternative})"
         after = "any alarm" if self.rule == "any" else "a harmful alarm"
         # The default (with the check) keeps the form it had before the check existed.
         without = "" if self.support else ", without the support check"
@@ -127,6 +215,13 @@ class SensorPolicy:
             f"{self.test} test{side} at alpha={self.alpha:g}, {self.fallback} {windows} offline after {after}"
             f"{without}"
         )
+
+
+def _alternative(alternative: object) -> str:
+    """A CUSUM's alternative in words: an attack by its repr, a gap law as such."""
+    if isinstance(alternative, np.ndarray):
+        return f"a gap law on 1..{alternative.size}"
+    return repr(alternative)
 
 
 _T = TypeVar("_T")

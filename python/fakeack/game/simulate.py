@@ -7,10 +7,12 @@ import math
 from dataclasses import dataclass, field
 from typing import cast
 
+import numpy as np
+
 from .. import _fakeack
 from .._internal.progress import Progress
 from .._internal.types import FloatArray, IntArray, RatioLike
-from .._internal.validate import as_int, as_probability
+from .._internal.validate import as_int, as_probability, as_real
 from ..attacks._args import required
 from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeries
 from ..attacks.kinds import AttackLike
@@ -20,6 +22,7 @@ from ..detection.probability import KernelTest
 from ..detection.process import flag_process
 from ..detection.rates import paper_min_gap
 from ..model.channels import Channel, ChannelLike, channel_argument, is_paper_channel
+from ..model.schedules import OnlineDesign
 from ..model.system import LinearSystem, compiled
 from ..montecarlo._automaton import as_sim_attack, kernel_attack
 from ._channel import PlayedGame, channel_game
@@ -49,10 +52,11 @@ class GameSimulation:
     online: float
     """Fraction of steps run online."""
     alarm_rate: float
-    """Alarms per tested window."""
+    """Alarms per tested window (for the CUSUM: per step at which the statistic ran, online and
+    not dormant)."""
     alarm_stderr: float
     fallback_rate: float
-    """Triggering alarms per tested window: the simulated d."""
+    """Triggering alarms per tested window: the simulated d (for the CUSUM, per running step)."""
     fallback_stderr: float
     runs: int
     horizon: int
@@ -64,6 +68,19 @@ class GameSimulation:
     """The channel played."""
     burn_in: int = 0
     """Steps played before the measurement (by default the attack's mixing time, in windows)."""
+    alarms_per_online_step: float = math.nan
+    """Alarms per measured online step, Σ alarms / Σ online steps over runs (any policy; 0 for
+    ``"never"``, NaN for ``"offline"``): the CUSUM's false-alarm rate when there is no attack."""
+    alarms_per_online_step_stderr: float = math.nan
+    """Its standard error (delta method over runs)."""
+    online_steps_between_alarms: float = math.nan
+    """Mean online steps between alarms, Σ online steps / Σ alarms (inf without alarms, NaN
+    without online steps): for the CUSUM without attack, the mean online time to a false alarm
+    (its average run length), under attack the mean online time to detection."""
+    alarms_per_run: IntArray | None = field(default=None, repr=False)
+    """Alarms in each run's measured horizon."""
+    online_steps_per_run: IntArray | None = field(default=None, repr=False)
+    """Online steps in each run's measured horizon."""
 
 
 def _ratio_se(num: FloatArray, den: FloatArray) -> tuple[float, float]:
@@ -125,7 +142,10 @@ def simulate_game(
     ratio : Fraction
         Energy ratio p/q (the offline schedule, and the online one via :func:`fakeack.design_online`).
     policy : SensorPolicy
-        The sensor's policy.
+        The sensor's policy; a CUSUM (``SensorPolicy("cusum", fallback=K, cusum=c)``) updates its
+        statistic at every online step, with the increments ``c.increments(channel, design)``
+        of the played channel and online design, falls back for K windows at once on an alarm
+        and restarts dormant (W = 0 until the first flag-ACK back online).
     attack : None or attack
         The attack, kept throughout, online and offline: a built-in attack, or any attacker
         automaton (:class:`fakeack.MimicryAttack`, which without its own channel or design runs
@@ -163,6 +183,14 @@ def simulate_game(
     -------
     GameSimulation
 
+    Raises
+    ------
+    ValueError
+        For an invalid argument (named first), among them a CUSUM whose increments are not two
+        equal-length 1-D arrays without NaN or whose threshold is not finite and positive.
+    TypeError
+        For a missing argument or one of the wrong type.
+
     Notes
     -----
     Runs in parallel with the GIL released; Ctrl-C raises ``KeyboardInterrupt`` promptly.
@@ -199,6 +227,7 @@ def simulate_game(
         burn_in = -(-mixing // kernel.n) * kernel.n  # whole windows: the measurement starts one
     burn_in = as_int("burn_in", burn_in, minimum=0)
     core, automaton = kernel_attack(att, ch, kernel.design)
+    cusum = _cusum_args(policy, ch, kernel.design)
     bar = Progress(runs, progress)
     r = kernel.ratio
     try:
@@ -220,6 +249,7 @@ def simulate_game(
             **kernel.channel_args(),
             min_gap=kernel.min_gap,
             automaton=automaton,
+            cusum=cusum,
         )
     finally:
         bar.close()
@@ -227,6 +257,13 @@ def simulate_game(
     tested = out["tested"].astype(float)
     alarm, alarm_se = _ratio_se(out["alarms"].astype(float), tested)
     fb, fb_se = _ratio_se(out["fallbacks"].astype(float), tested)
+    alarms, online_steps = out["alarms"], out["online_steps"]
+    per_step, per_step_se = _ratio_se(alarms.astype(float), online_steps.astype(float))
+    total_alarms, total_online = int(alarms.sum()), int(online_steps.sum())
+    if total_online == 0:
+        between = math.nan
+    else:
+        between = total_online / total_alarms if total_alarms else math.inf
 
     def sd(x: FloatArray) -> float:
         return float(x.std(ddof=1) / math.sqrt(len(x))) if len(x) > 1 else math.inf
@@ -248,6 +285,11 @@ def simulate_game(
         out["delivered"],
         ch,
         burn_in,
+        per_step,
+        per_step_se,
+        between,
+        alarms,
+        online_steps,
     )
 
 
@@ -257,6 +299,8 @@ def _kernel_policy(setting: _Setting, policy: SensorPolicy) -> KernelTest:
         return ("offline", -1, 0, [], [], 0.0, None, 0)
     if policy.test == "never":
         return ("online", -1, 0, [], [], 0.0, None, 0)
+    if policy.test == "cusum":  # its statistic goes as the kernel's `cusum` argument
+        return ("cusum", -1, 0, [], [], 0.0, None, cast(int, policy.fallback))
     # A test policy has both (SensorPolicy checks it).
     alpha, fallback = cast(float, policy.alpha), cast(int, policy.fallback)
     harm = (
@@ -278,3 +322,40 @@ def _kernel_policy(setting: _Setting, policy: SensorPolicy) -> KernelTest:
         harm,
         fallback,
     )
+
+
+def _cusum_args(
+    policy: SensorPolicy, channel: Channel, design: OnlineDesign
+) -> tuple[list[float], list[float], float] | None:
+    """The kernel's ``cusum`` argument, (inc_flag, inc_quiet, threshold), checked; None but for
+    the CUSUM."""
+    if policy.test != "cusum":
+        return None
+    c = policy.cusum
+    inc = c.increments(channel, design)  # type: ignore[union-attr]  # a CUSUM policy has one
+    if hasattr(inc, "flag") and hasattr(inc, "quiet"):
+        flag, quiet = inc.flag, inc.quiet
+    else:
+        try:
+            flag, quiet = inc
+        except (TypeError, ValueError):
+            raise ValueError(
+                f"cusum: increments() must give (flag, quiet) arrays, got {type(inc).__name__}"
+            ) from None
+    tables = []
+    for name, x in (("inc_flag", flag), ("inc_quiet", quiet)):
+        a = np.asarray(x, dtype=float)
+        if a.ndim != 1 or a.size == 0:
+            raise ValueError(f"cusum: {name} must be a non-empty 1-D array, got shape {a.shape}")
+        if np.isnan(a).any():
+            raise ValueError(f"cusum: {name} must not contain NaN")
+        tables.append([float(v) for v in a])
+    if len(tables[0]) != len(tables[1]):
+        raise ValueError(
+            "cusum: inc_flag and inc_quiet must have the same length, "
+            f"got {len(tables[0])} and {len(tables[1])}"
+        )
+    h = as_real("cusum.threshold", c.threshold)  # type: ignore[union-attr]
+    if not (math.isfinite(h) and h > 0):
+        raise ValueError(f"cusum.threshold must be finite and > 0, got {h}")
+    return tables[0], tables[1], h

@@ -18,8 +18,10 @@ use crate::montecarlo::game::{Detector, GameConfig, MarkovChannel, Policy};
 use crate::schedule::{offline_schedule, Ratio};
 
 /// The policy named `kind`: "online" (never tested), "offline", "count" (alarm iff N <= lo or
-/// N >= hi) or "interval" (alarm iff Pearson's X² over `edges`/`expected` exceeds `critical`);
-/// a test with the support check when `min_gap` > 1 (the two others refuse one).
+/// N >= hi), "interval" (alarm iff Pearson's X² over `edges`/`expected` exceeds `critical`) or
+/// "cusum" (the statistic of `cusum` = (inc_flag, inc_quiet, threshold), given with it and only
+/// with it); a count or interval test with the support check when `min_gap` > 1 (the others
+/// refuse one: the CUSUM's +inf increments are its own).
 #[allow(clippy::too_many_arguments)]
 fn policy_of(
     kind: &str,
@@ -31,6 +33,7 @@ fn policy_of(
     harmful_at_most: Option<i64>,
     fallback: u64,
     min_gap: i64,
+    cusum: Option<(Vec<f64>, Vec<f64>, f64)>,
 ) -> PyResult<Policy> {
     // A negative value as a ValueError naming the argument, not pyo3's OverflowError.
     let min_gap = u64::try_from(min_gap)
@@ -41,6 +44,27 @@ fn policy_of(
             format!("the policy {kind:?} tests nothing, so it takes no support check"),
         )
         .into());
+    }
+    if kind == "cusum" {
+        let Some((inc_flag, inc_quiet, threshold)) = cusum else {
+            return Err(Error::invalid("cusum", "the policy \"cusum\" needs its statistic").into());
+        };
+        if min_gap > 1 {
+            return Err(Error::invalid(
+                "min_gap",
+                "the CUSUM checks the support by its +inf increments",
+            )
+            .into());
+        }
+        return Ok(Policy::Cusum {
+            inc_flag,
+            inc_quiet,
+            threshold,
+            fallback,
+        });
+    }
+    if cusum.is_some() {
+        return Err(Error::invalid("cusum", format!("given with the policy {kind:?}")).into());
     }
     let detector = match kind {
         "online" => return Ok(Policy::Online),
@@ -125,9 +149,10 @@ fn rename(e: Error, pattern_given: bool) -> Error {
 /// `min_gap`: the support check of a testing policy (0 or 1: none), an alarm at any gap between
 /// flag-ACKs that reach the sensor shorter than it. `automaton`: an attacker automaton
 /// `(flag, quiet, start)` (each state's moves (probability, deliver, next state)) instead of
-/// `attack`, run on the lane kernel.
+/// `attack`, run on the lane kernel. `cusum`: the statistic `(inc_flag, inc_quiet, threshold)`
+/// of the policy "cusum" (whose fall-back is `fallback` windows), run on the lane kernel.
 #[pyfunction]
-#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None, min_gap=0, automaton=None))]
+#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None, min_gap=0, automaton=None, cusum=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate_game<'py>(
     py: Python<'py>,
@@ -158,6 +183,7 @@ pub(crate) fn simulate_game<'py>(
     offline_pattern: Option<Vec<bool>>,
     min_gap: i64,
     automaton: Option<(Moves, Moves, usize)>,
+    cusum: Option<(Vec<f64>, Vec<f64>, f64)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     if attack.is_some() && automaton.is_some() {
         return Err(PyValueError::new_err(
@@ -190,6 +216,7 @@ pub(crate) fn simulate_game<'py>(
             harmful_at_most,
             fallback,
             min_gap,
+            cusum,
         )?,
         window,
         horizon,
@@ -213,5 +240,6 @@ pub(crate) fn simulate_game<'py>(
     out.set_item("alarms", res.alarms.into_pyarray(py))?;
     out.set_item("fallbacks", res.fallbacks.into_pyarray(py))?;
     out.set_item("delivered", res.delivered.into_pyarray(py))?;
+    out.set_item("online_steps", res.online_steps.into_pyarray(py))?;
     Ok(out)
 }

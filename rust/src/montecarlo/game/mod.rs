@@ -20,6 +20,17 @@
 //! know which schedule the sensor runs: the detector keeps its memory of ACKs and sends flags,
 //! the attacker keeps counting, blocking and forging them, in every window.
 //!
+//! The CUSUM policy ([`Policy::Cusum`]) tests at every online step instead of every window: with
+//! y the steps since the last flag-ACK that reached the sensor (y = 1 on the step after it) and x
+//! whether one reaches it at this step, W <- max(0, W + inc), inc = `inc_flag[min(y, Y) - 1]` if
+//! x else `inc_quiet[min(y, Y) - 1]`, and W >= `threshold` is an alarm: the sensor runs the
+//! offline schedule, from the start of its period, for the next `fallback` * `window` steps, then
+//! returns online with W = 0 and the statistic dormant until a flag-ACK reaches it (y = 1 on the
+//! step after that one). The run starts with W = 0 and the statistic running, y = 1 at step 1
+//! (the initial condition is that of a flag-ACK delivered at step 0). Windows then only measure
+//! the fall-back. An increment of +inf is an immediate alarm (a gap the attack-free protocol
+//! cannot produce: the support check), one of -inf resets W to 0.
+//!
 //! Per step: the sensor's power (online: high iff a flag-ACK reached it last step; offline: the
 //! pattern), the arrival (on the i.i.d. channel always at high power, with probability λ at low;
 //! on a Markov channel in state c_k with probability `high[c_k]` or `low[c_k]`, see below), the
@@ -58,7 +69,8 @@
 //!   each per-run quantity a thermometer or binary bit-planes, as in the plain Monte Carlo's
 //!   bit-sliced kernel; block b draws from SplitMix64 sub-stream (seed, b), one xoshiro256++
 //!   generator per word, with bit-serial Bernoulli draws exact to 2^-64.
-//! * The lane kernel takes the rest: every Markov channel and every attacker automaton. Runs
+//! * The lane kernel takes the rest: every Markov channel, every attacker automaton and the
+//!   CUSUM policy (on every attack). Runs
 //!   advance in lock-step tiles of [`LANES`]; tile b draws
 //!   from SplitMix64 sub-stream (seed, b), one xoshiro256++ generator per lane. Each step takes
 //!   one 64-bit output per lane and splits it into four 16-bit slices for the step's four
@@ -99,7 +111,7 @@ use crate::system::LinearSystem;
 
 /// Runs simulated in lock-step by one kernel call.
 pub const LANES: usize = 8;
-/// Most runs in one call (per-run results take 40 bytes each).
+/// Most runs in one call (per-run results take 48 bytes each).
 pub const MAX_RUNS: u64 = 1 << 24;
 /// Longest table of Tr h^τ(P̄).
 pub const MAX_TRACE_TABLE: usize = 1 << 14;
@@ -111,6 +123,8 @@ pub const MAX_STEPS: u64 = 1 << 42;
 pub const CHECK_STEPS: u64 = 1 << 16;
 /// Most states of a Markov channel (its transition draws take K² words).
 pub const MAX_CHANNEL_STATES: usize = 1 << 10;
+/// Longest increment table of the CUSUM policy.
+pub const MAX_CUSUM_TABLE: usize = 1 << 14;
 
 /// The sensor's test of one window, applied to the flag-ACKs that reached it.
 #[derive(Debug, Clone, PartialEq)]
@@ -154,6 +168,19 @@ pub enum Policy {
         /// than `min_gap` steps after the previous one (the shortest gap possible without
         /// attack, z0 + 1 on the paper's channel); 0 or 1: no check.
         min_gap: u64,
+    },
+    /// Online, with the CUSUM statistic W run at every online step (see the module docs); an
+    /// alarm (W >= `threshold`) means `fallback` windows' worth of offline steps.
+    Cusum {
+        /// Increment at a step where a flag-ACK reaches the sensor, by y = 1..Y (the last entry
+        /// for every y >= Y); +inf and -inf allowed, NaN not.
+        inc_flag: Vec<f64>,
+        /// Increment at a step where none does, by y likewise; the same length Y >= 1.
+        inc_quiet: Vec<f64>,
+        /// Alarm threshold, finite and positive.
+        threshold: f64,
+        /// Offline windows (of `window` steps) after an alarm.
+        fallback: u64,
     },
 }
 
@@ -201,12 +228,15 @@ pub struct GameRuns {
     pub high_power: Vec<f64>,
     /// Fraction of measured steps run online.
     pub online: Vec<f64>,
-    /// Windows tested (online windows, for a testing policy).
+    /// Windows tested (online windows, for a testing policy); for the CUSUM, measured steps at
+    /// which the statistic ran (online and not dormant).
     pub tested: Vec<u64>,
-    /// Tested windows with an alarm.
+    /// Tested windows with an alarm; for the CUSUM, alarms at measured steps.
     pub alarms: Vec<u64>,
-    /// Alarms that triggered the fall-back.
+    /// Alarms that triggered the fall-back (for the CUSUM, every alarm).
     pub fallbacks: Vec<u64>,
+    /// Measured steps run online.
+    pub online_steps: Vec<u64>,
     /// Flag-ACKs that reached the sensor during the measured horizon (online or not).
     pub delivered: Vec<u64>,
 }
@@ -303,6 +333,50 @@ impl GameConfig {
                 ));
             }
         }
+        if let Policy::Cusum {
+            inc_flag,
+            inc_quiet,
+            threshold,
+            fallback,
+        } = &self.policy
+        {
+            for (name, table) in [("inc_flag", inc_flag), ("inc_quiet", inc_quiet)] {
+                if table.is_empty() || table.len() > MAX_CUSUM_TABLE {
+                    return Err(Error::invalid(
+                        name,
+                        format!(
+                            "must have 1 to {MAX_CUSUM_TABLE} entries, got {}",
+                            table.len()
+                        ),
+                    ));
+                }
+                if table.iter().any(|v| v.is_nan()) {
+                    return Err(Error::invalid(name, "must not contain NaN"));
+                }
+            }
+            if inc_flag.len() != inc_quiet.len() {
+                return Err(Error::invalid(
+                    "inc_quiet",
+                    format!(
+                        "must have as many entries as inc_flag ({}), got {}",
+                        inc_flag.len(),
+                        inc_quiet.len()
+                    ),
+                ));
+            }
+            if !(threshold.is_finite() && *threshold > 0.0) {
+                return Err(Error::invalid(
+                    "threshold",
+                    format!("must be finite and positive, got {threshold}"),
+                ));
+            }
+            if fallback.checked_mul(self.window).is_none() {
+                return Err(Error::invalid(
+                    "fallback",
+                    "fallback * window must fit in 64 bits",
+                ));
+            }
+        }
         Ok(())
     }
 
@@ -345,6 +419,7 @@ pub(crate) fn simulate_on(
             out.cost.push(cost / h);
             out.high_power.push(high as f64 / h);
             out.online.push(online as f64 / h);
+            out.online_steps.push(online);
             out.tested.push(counts[0]);
             out.alarms.push(counts[1]);
             out.fallbacks.push(counts[2]);

@@ -1,6 +1,6 @@
 //! The validated, precomputed form of a [`GameConfig`]: exact Bernoulli draws from 16-bit
 //! slices, the attacker's blocking rule (or its automaton's alias tables), the trace table, the
-//! interval test's bins and the support check's gap.
+//! interval test's bins, the support check's gap and the CUSUM's fall-back length.
 
 use super::channel::ChannelPlan;
 use super::*;
@@ -11,6 +11,11 @@ pub(super) const RULE_FIRST_R: u8 = 1;
 pub(super) const RULE_MASK: u8 = 2;
 pub(super) const RULE_RANDOM: u8 = 3;
 pub(super) const RULE_AUTOMATON: u8 = 4;
+
+/// The lane kernel's per-step detection: none, the interval test's histogram, or the CUSUM.
+pub(super) const DET_NONE: u8 = 0;
+pub(super) const DET_BINS: u8 = 1;
+pub(super) const DET_CUSUM: u8 = 2;
 
 /// A Bernoulli draw from a 16-bit slice, exact to 2^-64 (see the module docs).
 #[derive(Debug, Clone, Copy)]
@@ -91,6 +96,8 @@ pub(super) struct Plan<'a> {
     pub(super) bins: usize,
     /// The support check's shortest allowed gap, > 1; 0 without the check.
     pub(super) min_gap: u64,
+    /// The CUSUM policy's steps offline after an alarm (`fallback` * `window`); 0 for the others.
+    pub(super) fall_steps: u64,
 }
 
 impl<'a> Plan<'a> {
@@ -126,6 +133,11 @@ impl<'a> Plan<'a> {
             Policy::Test { min_gap, .. } if min_gap > 1 => min_gap,
             _ => 0,
         };
+        let fall_steps = match cfg.policy {
+            // Validated not to overflow.
+            Policy::Cusum { fallback, .. } => fallback * cfg.window,
+            _ => 0,
+        };
         Ok(Plan {
             cfg,
             traces,
@@ -145,6 +157,7 @@ impl<'a> Plan<'a> {
             bin_of,
             bins,
             min_gap,
+            fall_steps,
         })
     }
 }

@@ -9,6 +9,8 @@ use crate::schedule::{offline_schedule, Ratio};
 mod automaton;
 /// The game on a Markov channel.
 mod channel;
+/// The CUSUM policy.
+mod cusum;
 /// The support check.
 mod support;
 

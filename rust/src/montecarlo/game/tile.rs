@@ -1,5 +1,5 @@
 //! The lock-step kernel: a tile of [`LANES`] runs advanced step by step, their window tests and
-//! mode switches.
+//! mode switches (the CUSUM's, at every step, within the step loop).
 
 use super::plan::*;
 use super::*;
@@ -23,7 +23,12 @@ pub(super) struct Tile {
     /// The current window had a gap shorter than the support check's `min_gap`.
     pub(super) short: [bool; LANES],
     pub(super) online: [bool; LANES],
+    /// Windows (steps, for the CUSUM) left offline.
     pub(super) left: [u64; LANES],
+    /// The CUSUM statistic W.
+    pub(super) stat: [f64; LANES],
+    /// The CUSUM runs (online and not dormant).
+    pub(super) watching: [bool; LANES],
     pub(super) pos: [usize; LANES],
     pub(super) count: [i64; LANES],
     pub(super) bins: Vec<[u32; LANES]>,
@@ -69,6 +74,9 @@ impl Tile {
             short: [false; LANES],
             online: [!offline; LANES],
             left: [0; LANES],
+            // W = 0 at the initial condition, as after a flag-ACK at step 0.
+            stat: [0.0; LANES],
+            watching: [true; LANES],
             pos: [0; LANES],
             count: [0; LANES],
             bins: vec![[0; LANES]; plan.bins],
@@ -86,43 +94,32 @@ impl Tile {
     /// `steps` steps of every lane, by the kernel instantiated for the plan's features.
     pub(super) fn advance(&mut self, plan: &Plan<'_>, steps: u64) {
         let mu = plan.cfg.design.mu < 1.0;
-        let bins = plan.bins > 0;
+        let det = if matches!(plan.cfg.policy, Policy::Cusum { .. }) {
+            DET_CUSUM
+        } else if plan.bins > 0 {
+            DET_BINS
+        } else {
+            DET_NONE
+        };
+        macro_rules! det {
+            ($mu:literal, $forge:literal, $rule:expr, $ch:literal) => {
+                match det {
+                    DET_NONE => self.kernel::<$mu, $forge, DET_NONE, { $rule }, $ch>(plan, steps),
+                    DET_BINS => self.kernel::<$mu, $forge, DET_BINS, { $rule }, $ch>(plan, steps),
+                    _ => self.kernel::<$mu, $forge, DET_CUSUM, { $rule }, $ch>(plan, steps),
+                }
+            };
+        }
         macro_rules! go {
             ($rule:expr) => {
-                match (mu, plan.forging, bins) {
+                match (mu, plan.forging) {
                     // A Markov channel: the memory-length and forgery draws always run (μ = 1
                     // and γ = 0 draw sure outcomes), which halves the instantiations.
-                    _ if plan.channel.is_some() => {
-                        if bins {
-                            self.kernel::<true, true, true, { $rule }, true>(plan, steps)
-                        } else {
-                            self.kernel::<true, true, false, { $rule }, true>(plan, steps)
-                        }
-                    }
-                    (false, false, false) => {
-                        self.kernel::<false, false, false, { $rule }, false>(plan, steps)
-                    }
-                    (false, false, true) => {
-                        self.kernel::<false, false, true, { $rule }, false>(plan, steps)
-                    }
-                    (false, true, false) => {
-                        self.kernel::<false, true, false, { $rule }, false>(plan, steps)
-                    }
-                    (false, true, true) => {
-                        self.kernel::<false, true, true, { $rule }, false>(plan, steps)
-                    }
-                    (true, false, false) => {
-                        self.kernel::<true, false, false, { $rule }, false>(plan, steps)
-                    }
-                    (true, false, true) => {
-                        self.kernel::<true, false, true, { $rule }, false>(plan, steps)
-                    }
-                    (true, true, false) => {
-                        self.kernel::<true, true, false, { $rule }, false>(plan, steps)
-                    }
-                    (true, true, true) => {
-                        self.kernel::<true, true, true, { $rule }, false>(plan, steps)
-                    }
+                    _ if plan.channel.is_some() => det!(true, true, $rule, true),
+                    (false, false) => det!(false, false, $rule, false),
+                    (false, true) => det!(false, true, $rule, false),
+                    (true, false) => det!(true, false, $rule, false),
+                    (true, true) => det!(true, true, $rule, false),
                 }
             };
         }
@@ -133,32 +130,25 @@ impl Tile {
             Block::Mask(_) => go!(RULE_MASK),
             Block::Random(_) => go!(RULE_RANDOM),
             // An automaton forges by its own moves (the plan's γ is 0), so FORGE is off.
-            Block::Automaton { .. } => match (mu, bins) {
-                _ if plan.channel.is_some() => {
-                    if bins {
-                        self.kernel::<true, false, true, A, true>(plan, steps)
-                    } else {
-                        self.kernel::<true, false, false, A, true>(plan, steps)
-                    }
-                }
-                (false, false) => self.kernel::<false, false, false, A, false>(plan, steps),
-                (false, true) => self.kernel::<false, false, true, A, false>(plan, steps),
-                (true, false) => self.kernel::<true, false, false, A, false>(plan, steps),
-                (true, true) => self.kernel::<true, false, true, A, false>(plan, steps),
+            Block::Automaton { .. } => match mu {
+                _ if plan.channel.is_some() => det!(true, false, A, true),
+                false => det!(false, false, A, false),
+                true => det!(true, false, A, false),
             },
         }
     }
 
     /// The step loop, branch-free except for the rare ties of the Bernoulli slices (and an
-    /// automaton's alias draw): `MU` (a memory-length draw), `FORGE` (forged flags), `BINS` (the
-    /// interval test's histogram) and `RULE` (the attacker's blocking rule, or its automaton) are
+    /// automaton's alias draw): `MU` (a memory-length draw), `FORGE` (forged flags), `DET` (the
+    /// interval test's histogram, or the CUSUM with its alarms and fall-backs at any step, or
+    /// neither) and `RULE` (the attacker's blocking rule, or its automaton) are
     /// compile-time, so each plan runs only its code; so is `CH`, a Markov channel (the plan's),
     /// whose state sets each arrival's probability and moves after the step by one further draw.
     #[inline(never)]
     pub(super) fn kernel<
         const MU: bool,
         const FORGE: bool,
-        const BINS: bool,
+        const DET: u8,
         const RULE: u8,
         const CH: bool,
     >(
@@ -191,6 +181,16 @@ impl Tile {
             _ => &no_moves,
         };
         let channel = plan.channel.as_ref().filter(|_| CH);
+        let (inc_flag, inc_quiet, threshold): (&[f64], &[f64], f64) = match &plan.cfg.policy {
+            Policy::Cusum {
+                inc_flag,
+                inc_quiet,
+                threshold,
+                ..
+            } => (inc_flag, inc_quiet, *threshold),
+            _ => (&[], &[], 0.0),
+        };
+        let fall_steps = plan.fall_steps;
         for _ in 0..steps {
             for l in 0..LANES {
                 let rng = &mut self.rng[l];
@@ -257,7 +257,7 @@ impl Tile {
                 self.delivered[l] += u64::from(delivered);
                 let counted = delivered & online;
                 self.count[l] += i64::from(counted);
-                if BINS {
+                if DET == DET_BINS {
                     self.bins[bin_of[gap.min(gap_last)] as usize][l] += u32::from(counted);
                 }
                 if support {
@@ -266,6 +266,35 @@ impl Tile {
                     self.armed[l] |= counted;
                 }
                 self.gap[l] = gap & black_box(usize::from(!delivered).wrapping_neg());
+                if DET == DET_CUSUM {
+                    if !online {
+                        self.left[l] -= 1;
+                        self.online[l] = self.left[l] == 0;
+                    } else if self.watching[l] {
+                        // y = `gap`, the steps since the last flag-ACK that reached the sensor.
+                        let y = gap.min(inc_flag.len()) - 1;
+                        let inc = if delivered { inc_flag[y] } else { inc_quiet[y] };
+                        // W is finite, so W + inc is never NaN; -inf gives 0, +inf an alarm.
+                        let w = (self.stat[l] + inc).max(0.0);
+                        self.tested[l] += 1;
+                        if w >= threshold {
+                            self.alarms[l] += 1;
+                            self.fallbacks[l] += 1;
+                            self.stat[l] = 0.0;
+                            self.watching[l] = false;
+                            // The offline stretch starts next step, at the period's start
+                            // (`pos` is 0 after an online step).
+                            self.online[l] = fall_steps == 0;
+                            self.left[l] = fall_steps;
+                        } else {
+                            self.stat[l] = w;
+                        }
+                    } else {
+                        // Dormant: the first flag-ACK back online restarts the statistic, with
+                        // y = 1 on the next step.
+                        self.watching[l] = delivered;
+                    }
+                }
                 if let Some(ch) = channel {
                     // c_k -> c_{k+1}, from a fresh output of the lane's stream.
                     let rng = &mut self.rng[l];
@@ -337,8 +366,13 @@ impl Tile {
     }
 
     /// Forgets the costs and rates the burn-in accumulated (the current window's flags stay: its
-    /// test reads the whole window).
-    pub(super) fn start_measuring(&mut self) {
+    /// test reads the whole window), and the CUSUM's alarms, which come at steps.
+    pub(super) fn start_measuring(&mut self, plan: &Plan<'_>) {
+        if matches!(plan.cfg.policy, Policy::Cusum { .. }) {
+            self.tested = [0; LANES];
+            self.alarms = [0; LANES];
+            self.fallbacks = [0; LANES];
+        }
         self.cost = [0.0; LANES];
         self.window_cost = [0.0; LANES];
         self.high = [0; LANES];
@@ -371,7 +405,7 @@ pub(super) fn run_tile(plan: &Plan<'_>, index: u64, cancel: &AtomicBool) -> Resu
         let end = (at + cfg.window).min(total);
         if !measuring && end > cfg.burn_in {
             chunked(&mut tile, cfg.burn_in - at)?;
-            tile.start_measuring();
+            tile.start_measuring(plan);
             measuring = true;
             chunked(&mut tile, end - cfg.burn_in)?;
         } else {
