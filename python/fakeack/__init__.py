@@ -70,12 +70,14 @@ from .detection import (
 )
 from .engine import Scenario, StabilityRegion, stability_region
 from .game import (
+    DelayFrontier,
     GameSimulation,
     GameSolution,
     Payoff,
     SensorPolicy,
     Stackelberg,
     StealthyFrontier,
+    delay_frontier,
     game_payoff,
     simulate_game,
     solve_game,
@@ -112,6 +114,7 @@ from .optimal import (
     optimal_power_policy,
 )
 from .plots import (
+    plot_delay_frontier,
     plot_detection_curves,
     plot_frontiers,
     plot_game,
@@ -169,6 +172,8 @@ __all__ = [
     "PowerPolicyResult",
     "optimal_jamming",
     "optimal_power_policy",
+    "DelayFrontier",
+    "delay_frontier",
     "GameSimulation",
     "GameSolution",
     "Payoff",
@@ -176,6 +181,7 @@ __all__ = [
     "Stackelberg",
     "StealthyFrontier",
     "game_payoff",
+    "plot_delay_frontier",
     "plot_detection_curves",
     "plot_frontiers",
     "plot_game",

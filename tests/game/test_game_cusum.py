@@ -16,6 +16,7 @@ from fakeack import _fakeack
 
 LAM, RATIO = 0.5, Fraction(1, 7)
 GE = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
+SYSTEM = fa.LinearSystem(**PAPER)
 INF = math.inf
 
 
@@ -176,8 +177,8 @@ def test_policy_arguments():
         fa.SensorPolicy("count", 0.01, 2, cusum=STAT)
 
 
-def test_the_window_formula_refuses_the_cusum(system):
-    with pytest.raises(ValueError, match="^policy"):
+def test_the_payoff_needs_a_cusum_test(system):
+    with pytest.raises(TypeError, match="^policy"):
         fa.game_payoff(system, LAM, RATIO, fa.SensorPolicy("cusum", fallback=1, cusum=STAT), None, 100)
 
 
@@ -244,3 +245,33 @@ def test_increments_as_an_object_with_flag_and_quiet(system):
     b = fa.simulate_game(system, LAM, RATIO, obj, **args)
     assert np.array_equal(a.alarms_per_run, b.alarms_per_run) and a.j == b.j
     assert a.alarms_per_run.sum() > 0
+
+
+@pytest.mark.parametrize(
+    "attack", [None, fa.RandomBlocking(0.5), fa.FlagInjection(0.05, min_gap=3)], ids=str
+)
+def test_the_closed_loop_alarms_at_the_run_length(attack):
+    """After each fall-back the statistic restarts at W = 0 at the first delivered flag-ACK, the
+    renewal start of fa.cusum_run_length: the steps it runs per alarm are its mean run length.
+    (An attacker with a phase, e.g. periodic blocking, keeps its phase through the fall-back, so
+    there the restart is not the attacker's start state.)"""
+    test = fa.CusumTest(fa.RandomBlocking(0.5), 2.5)
+    arl = fa.cusum_run_length(LAM, fa.OnlineDesign(2), test, attack)
+    policy = fa.SensorPolicy("cusum", fallback=1, cusum=test)
+    sim = fa.simulate_game(SYSTEM, LAM, RATIO, policy, attack, 400_000, 64, seed=7, n_steps=100)
+    rate_se = sim.alarm_stderr
+    assert abs(sim.alarm_rate - 1 / arl.mean) < 4 * rate_se + arl.error / arl.mean**2, (sim.alarm_rate, arl)
+
+
+@pytest.mark.parametrize(
+    ("attack", "fallback"), [(fa.RandomBlocking(0.2), 2), (fa.RandomBlocking(0.5), 4), (None, 8)], ids=str
+)
+def test_the_closed_loop_agrees_with_the_cusum_payoff(attack, fallback):
+    """J and the online fraction of the renewal average against the closed loop (windows of 1000
+    steps offline; the formula neglects the transients at each switch, as for the windowed tests)."""
+    test = fa.CusumTest(fa.RandomBlocking(0.5), 4.0)
+    policy = fa.SensorPolicy("cusum", fallback=fallback, cusum=test)
+    p = fa.game_payoff(SYSTEM, LAM, RATIO, policy, attack, 1000)
+    sim = fa.simulate_game(SYSTEM, LAM, RATIO, policy, attack, 2_000_000, 64, seed=11, n_steps=1000)
+    assert abs(sim.online - p.online) < 0.01, (sim.online, p.online)
+    assert abs(sim.j - p.j) < 4 * sim.stderr + 0.005 * p.j, (sim.j, sim.stderr, p.j)

@@ -111,7 +111,13 @@ CASES = {
     "plot_decision": ("grid_inputs", 2, lambda d, ax: plots.plot_decision(d["ds"], "paper", ax)),
     "plot_stability_region": ("stability_inputs", 2, lambda d, ax: plots.plot_stability_region(d, ax)),
     "plot_memory": ("memory_inputs", 2, lambda d, ax: plots.plot_memory(d, ax)),
+    "plot_delay_frontier": ("delay_inputs", 1, lambda d, ax: fa.plot_delay_frontier(d, ax)),
 }
+
+
+@pytest.fixture(scope="module")
+def delay_inputs(paper):
+    return [fa.delay_frontier(paper, 0.5, "1/7", 2e4, fam, window=200, grid=2) for fam in ("random", "mimicry")]
 
 
 @pytest.fixture(scope="module")

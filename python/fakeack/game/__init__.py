@@ -28,8 +28,15 @@ online worse than offline (or one who only forges flags) *wants* to trip a senso
 on any alarm. A rational sensor falls back only from harmful attacks: rule ``"harmful"`` acts on
 an alarm only when the budget estimated from the window's count (:func:`fakeack.estimate_beta`)
 exceeds β̄, the threshold past which online is worse than offline.
+
+**A sequential sensor.** With ``SensorPolicy("cusum", fallback=K, cusum=fa.CusumTest(...))`` the
+sensor runs the flag-ACK CUSUM at every online step instead of testing windows; the cycle is then
+the online time to an alarm followed by K offline windows, with the same renewal average.
+:func:`delay_frontier` sets what an attack costs against how soon the CUSUM, or the count test at
+the same false-alarm rate, sees it.
 """
 
+from .delay import DELAY_FAMILIES, DelayFrontier, delay_frontier
 from .frontier import FAMILIES, StealthyFrontier, stealthy_frontier
 from .payoff import Payoff, game_payoff
 from .policies import SensorPolicy
@@ -48,4 +55,7 @@ __all__ = [
     "FAMILIES",
     "StealthyFrontier",
     "stealthy_frontier",
+    "DELAY_FAMILIES",
+    "DelayFrontier",
+    "delay_frontier",
 ]

@@ -3,11 +3,14 @@ sensor policy and an attack, from the exact costs and the detection probabilitie
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from fractions import Fraction
 from typing import TypeAlias, cast
 
 import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.linalg import splu
 
 from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_int, as_probability, as_ratio, as_real
@@ -24,10 +27,12 @@ from ..detection.count import (
     harmful_bound,
     uses_exact_law,
 )
+from ..detection.cusum import CusumTest
 from ..detection.interval_power import AttackForm, interval_batch, interval_support_probability, sum_tails
 from ..detection.interval_test import IntervalTest, cached_interval_test
 from ..detection.probability import forges
 from ..detection.process import FlagProcess, flag_process
+from ..detection.run_length import cusum_run_length
 from ..model.channels import as_channel
 from ..model.schedules import OnlineDesign, design_online, j_offline
 from ..model.system import LinearSystem, compiled
@@ -197,9 +202,11 @@ class Payoff:
     high_power: float
     """Long-run fraction of steps at high power (the energy is δ + (Δ - δ) times this)."""
     detection: float
-    """d, the probability that a stationary online window ends with a triggering alarm."""
+    """d, the probability that a stationary online window ends with a triggering alarm (for a
+    CUSUM policy: the window length over the mean online steps between alarms)."""
     online: float
-    """Long-run fraction of windows run online: 1 / (1 + d K)."""
+    """Long-run fraction of windows run online: 1 / (1 + d K) (for a CUSUM policy
+    :math:`T_{on}/(T_{on} + K n)`, :math:`T_{on}` the mean online steps between alarms)."""
     j_attack: float
     """Stationary online cost under the attack."""
     j_offline: float
@@ -222,8 +229,34 @@ def played_attack(setting: _Setting, attack: GameAttack, authenticated: bool) ->
     return discard_forgeries(attack, channel=setting.lam, design=setting.design)
 
 
+def _cusum_online_steps(setting: _Setting, policy: SensorPolicy, attack: GameAttack) -> float:
+    r"""Mean online steps between two fall-backs under a CUSUM policy: the wait for the first
+    flag-ACK after the return (from the stationary state, :math:`\pi (I - D_0)^{-1}\mathbf 1`)
+    and the run length from the renewal start (:func:`fakeack.cusum_run_length`)."""
+    key = ("cusum", policy.cusum, attack)
+    if key not in setting._cache:
+        test = policy.cusum
+        if not isinstance(test, CusumTest):
+            raise TypeError(f"policy: the payoff needs a fakeack.CusumTest, got {type(test).__name__}")
+        process = setting._process(attack)
+        n = process.n_states
+        wait = splu(sp.csc_array(sp.identity(n, format="csc") - process.D0)).solve(np.ones(n))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", UserWarning)  # its accuracy is far below the formula's
+            run = cusum_run_length(setting.lam, setting.design, test, attack)
+        setting._cache[key] = float(process.stationary @ wait) + run.mean
+    return cast(float, setting._cache[key])
+
+
 def _payoff(setting: _Setting, policy: SensorPolicy, attack: GameAttack, d: float | None = None) -> Payoff:
     j_att, hp_att = setting.attack_costs(attack)
+    if policy.test == "cusum":
+        steps = _cusum_online_steps(setting, policy, attack)
+        offline = cast(int, policy.fallback) * setting.n
+        online = steps / (steps + offline)
+        j = online * j_att + (1.0 - online) * setting.j_off
+        hp = online * hp_att + (1.0 - online) * setting.hp_off
+        return Payoff(j, hp, min(1.0, setting.n / steps), online, j_att, setting.j_off)
     if policy.test == "offline":
         return Payoff(setting.j_off, setting.hp_off, 0.0, 0.0, j_att, setting.j_off)
     if d is None:
@@ -252,6 +285,12 @@ def game_payoff(
     (with ``beta_bar`` for the harmful rule, and with the support check when the policy has it,
     as it does by default); the module docstring derives it and states what it neglects. The
     online schedule is :func:`fakeack.design_online` ``(lam, ratio)``.
+
+    A CUSUM policy (``SensorPolicy("cusum", fallback=K, cusum=fa.CusumTest(...))``) alarms
+    after :math:`T_{on}` online steps on average: the wait for the first flag-ACK after a return
+    and the run length of :func:`fakeack.cusum_run_length` from the renewal start; then
+    :math:`J = (T_{on} J_{att} + K n J_{off}) / (T_{on} + K n)`, the same renewal average with
+    the CUSUM's cycle in place of the windows'.
 
     The count test's d is exact or normal as in :func:`fakeack.detection_probability`, and
     exact with the support check against a forger; the interval test's combination with the
@@ -285,7 +324,5 @@ def game_payoff(
     """
     if not isinstance(policy, SensorPolicy):
         raise TypeError(f"policy must be a fakeack.SensorPolicy, got {type(policy).__name__}")
-    if policy.test == "cusum":
-        raise ValueError("policy: the window formula has no CUSUM; fakeack.simulate_game plays it")
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
     return _payoff(setting, policy, played_attack(setting, as_game_attack(attack), authenticated))

@@ -18,6 +18,7 @@ notebooks. A new figure shows in Jupyter as the value of a cell, or is written w
 """
 
 from ._figure import save_figure
+from .delay import plot_delay_frontier
 from .detection import plot_detection_curves
 from .families import plot_attack_families
 from .frontier import plot_frontiers
@@ -37,6 +38,7 @@ __all__ = [
     "plot_attack_families",
     "plot_frontiers",
     "plot_detection_curves",
+    "plot_delay_frontier",
     "plot_game",
     "plot_beta_bar",
     "plot_decision",
