@@ -247,9 +247,7 @@ def test_increments_as_an_object_with_flag_and_quiet(system):
     assert a.alarms_per_run.sum() > 0
 
 
-@pytest.mark.parametrize(
-    "attack", [None, fa.RandomBlocking(0.5), fa.FlagInjection(0.05, min_gap=3)], ids=str
-)
+@pytest.mark.parametrize("attack", [None, fa.RandomBlocking(0.5), fa.FlagInjection(0.05, min_gap=3)], ids=str)
 def test_the_closed_loop_alarms_at_the_run_length(attack):
     """After each fall-back the statistic restarts at W = 0 at the first delivered flag-ACK, the
     renewal start of fa.cusum_run_length: the steps it runs per alarm are its mean run length.

@@ -117,7 +117,9 @@ CASES = {
 
 @pytest.fixture(scope="module")
 def delay_inputs(paper):
-    return [fa.delay_frontier(paper, 0.5, "1/7", 2e4, fam, window=200, grid=2) for fam in ("random", "mimicry")]
+    return [
+        fa.delay_frontier(paper, 0.5, "1/7", 2e4, fam, window=200, grid=2) for fam in ("random", "mimicry")
+    ]
 
 
 @pytest.fixture(scope="module")
