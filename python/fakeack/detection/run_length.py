@@ -214,8 +214,8 @@ def _attack_map(null: FlagProcess, attacked: FlagProcess) -> sp.csr_array:
 
 def _quasi_stationary(Q: sp.csc_array, p: FloatArray, tol: float = 1e-12, limit: int = 200_000) -> FloatArray:
     """The law of the chain's state given no alarm yet, in the long run: the left Perron vector
-    of Q, by the power method from p."""
-    Qt = Q.T.tocsr()
+    of Q, by the power method from p on (I + Q)/2 (same vector, no periodicity)."""
+    Qt = (0.5 * (sp.identity(Q.shape[0], format="csr") + Q.T)).tocsr()
     for _ in range(limit):
         nxt = Qt @ p
         mass = float(nxt.sum())
