@@ -68,13 +68,23 @@ def frontier(alternative: object = None) -> None:
     f0 = fronts[0]
     print(
         f"{f0.cusum}; J_online = {f0.j_online:.4f}, J_offline = {f0.j_offline:.4f}\n"
-        "  attack                                          J      CUSUM delay     count test: d, delay"
+        "  attack                                          J      CUSUM delay     count: d, delay"
+        "      interval: d, delay"
     )
     for f in fronts:
-        for a, j, dl, e, d, wd in zip(
-            f.attacks, f.j, f.cusum_delay, f.cusum_error, f.window_detection, f.window_delay, strict=True
-        ):
-            print(f"  {_name(a):45s} {j:7.4f} {dl:10.0f} +- {e:<5.0f} {d:8.4f} {wd:9.0f}")
+        rows = zip(
+            f.attacks,
+            f.j,
+            f.cusum_delay,
+            f.cusum_error,
+            f.window_detection,
+            f.window_delay,
+            f.interval_detection,
+            f.interval_delay,
+            strict=True,
+        )
+        for a, j, dl, e, d, wd, di, wi in rows:
+            print(f"  {_name(a):45s} {j:7.4f} {dl:10.0f} +- {e:<5.0f} {d:8.4f} {wd:9.0f} {di:8.4f} {wi:9.0f}")
 
 
 def tuned() -> None:

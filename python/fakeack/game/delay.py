@@ -4,6 +4,7 @@ same false-alarm rate."""
 
 from __future__ import annotations
 
+import math
 import warnings
 from dataclasses import dataclass
 
@@ -16,6 +17,8 @@ from ..attacks.chain import j_attack
 from ..attacks.kinds import Attack, PeriodicBlocking, RandomBlocking
 from ..attacks.random import rate_matching_attack
 from ..detection.cusum import CusumTest
+from ..detection.flags import flag_interval_moments
+from ..detection.interval_test import MIN_EXPECTED_FLAGS
 from ..detection.probability import detection_probability
 from ..detection.run_length import cusum_run_length, cusum_threshold
 from ..model.schedules import OnlineDesign, design_online, j_offline, j_online
@@ -52,6 +55,11 @@ class DelayFrontier:
     window_delay: FloatArray
     """The count test's mean delay, ``window / 2 + window / detection``: the onset uniform in a
     window, detection from the first whole attacked window on (``inf`` where never)."""
+    interval_detection: FloatArray
+    """The interval test's detection probability per window (with the support check); NaN for
+    a window too short for it (fewer than 100 expected flag-ACKs, where its normal law fails)."""
+    interval_delay: FloatArray
+    """The interval test's mean delay, as ``window_delay``."""
     cusum: CusumTest
     """The CUSUM, its threshold set for ``arl0``."""
     arl0: float
@@ -92,14 +100,15 @@ def delay_frontier(
     grid: int = 5,
 ) -> DelayFrontier:
     r"""J against the mean detection delay for the attacks of one family, for the flag-ACK CUSUM
-    and for the count test at the same mean time to a false alarm.
+    and for the windowed tests at the same mean time to a false alarm.
 
     The CUSUM (:class:`fakeack.CusumTest` against ``alternative``) gets the threshold of
     :func:`fakeack.cusum_threshold` for ``arl0``; each attack's delay is
     :func:`fakeack.cusum_run_length` from the renewal start. The count test of ``window`` steps
     at level :math:`\alpha = ` ``window / arl0`` has the same mean time to a false alarm
     (``window / alpha`` steps); its delay is ``window / 2 + window / d`` with d its detection
-    probability per window (:func:`fakeack.detection_probability`, with the support check).
+    probability per window (:func:`fakeack.detection_probability`, with the support check); the
+    interval test likewise.
     Families: ``"random"`` (:class:`fakeack.RandomBlocking` at ``grid`` budgets in [0.1, 0.9]),
     ``"careful"`` (:func:`fakeack.rate_matching_attack` with ``min_gap = z0 + 1`` at those
     budgets, where a rate-matching forger exists), ``"periodic"`` (the paper's consecutive
@@ -140,8 +149,10 @@ def delay_frontier(
     alt = RandomBlocking(0.5) if alternative is None else alternative
     cusum = CusumTest(alt, cusum_threshold(lam, design, alt, a0))
     alpha = n / a0
+    m, _ = flag_interval_moments(lam, z0, mu)
+    interval = n / m >= MIN_EXPECTED_FLAGS  # else the interval test's normal law does not hold
     attacks = _family(family, lam, design, points)
-    j, delay, err, d = (np.empty(len(attacks)) for _ in range(4))
+    j, delay, err, d, di = (np.empty(len(attacks)) for _ in range(5))
     for k, attack in enumerate(attacks):
         j[k] = j_attack(system, lam, z0, attack=attack, mu=mu)
         with warnings.catch_warnings():
@@ -149,8 +160,9 @@ def delay_frontier(
             run = cusum_run_length(lam, design, cusum, attack)
         delay[k], err[k] = run.mean, run.error
         d[k] = detection_probability(lam, z0, attack, n, alpha, "count", mu=mu)
+        di[k] = detection_probability(lam, z0, attack, n, alpha, "interval", mu=mu) if interval else math.nan
     with np.errstate(divide="ignore"):
-        window_delay = n / 2 + n / d
+        window_delay, interval_delay = n / 2 + n / d, n / 2 + n / di
     return DelayFrontier(
         family,
         attacks,
@@ -159,6 +171,8 @@ def delay_frontier(
         err,
         d,
         window_delay,
+        di,
+        interval_delay,
         cusum,
         a0,
         n,

@@ -23,7 +23,8 @@ def plot_delay_frontier(frontiers: Sequence[DelayFrontier], ax: Axes | None = No
     """J against the mean detection delay of each attack family's attacks.
 
     One colour per family; solid lines and dots for the CUSUM, dashed lines and crosses for the
-    count test at the same mean time to a false alarm; dotted lines at that time (ARL0), at the
+    count test, dotted lines and plus signs for the interval test, both at the same mean time to
+    a false alarm; dotted lines at that time (ARL0), at the
     unattacked online cost and at the offline schedule's cost.
 
     Parameters
@@ -47,6 +48,7 @@ def plot_delay_frontier(frontiers: Sequence[DelayFrontier], ax: Axes | None = No
         color = f"C{k}"
         axes.plot(f.cusum_delay, f.j, "o-", color=color, ms=4, label=f"{f.family}: CUSUM")
         axes.plot(f.window_delay, f.j, "x--", color=color, ms=5, label=f"{f.family}: count test")
+        axes.plot(f.interval_delay, f.j, "+:", color=color, ms=6, label=f"{f.family}: interval test")
     ref = frontiers[0]
     axes.axvline(ref.arl0, color="0.5", lw=0.8, ls=":", label=f"mean time to a false alarm {ref.arl0:g}")
     axes.axhline(ref.j_online, color="0.6", lw=0.8, ls=":", label="online, no attack")
