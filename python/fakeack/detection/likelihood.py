@@ -2,7 +2,11 @@ r"""The likelihood-ratio test of a window of the flag-ACK stream (:func:`likelih
 
 In a window of n steps the sensor sums the per-step log-likelihood ratio :math:`\Lambda_n` of what
 reached it between an alternative with i.i.d. gaps and the attack-free law (the increments of
-:class:`fakeack.CusumTest`, without the CUSUM's reflection at 0) and alarms when
+:class:`fakeack.CusumTest`, without the CUSUM's reflection at 0), opened by the log-likelihood
+ratio of the gap :math:`y_0` already running at the window's start under the two stationary age
+laws, :math:`\log(P_a(y_0)/P_0(y_0))`, :math:`P(y_0 = y) = S(y)/m` (S the survival of the gap
+law, m its mean). On the paper's channel the gaps are i.i.d. under both laws, so this is the exact
+log-likelihood ratio of everything the sensor saw in a stationary window; it alarms when
 :math:`\Lambda_n \ge c_\alpha`, the :math:`1-\alpha` quantile of its attack-free law. By the lemma of
 Neyman and Pearson no test of level alpha has a higher detection probability against the
 alternative itself; against other attacks it is one more detector, whose detection probability
@@ -25,7 +29,7 @@ from ..attacks.kinds import RandomBlocking, as_attack
 from ..model.channels import Channel, ChannelLike, as_channel
 from ..model.schedules import OnlineDesign
 from .cusum import CusumIncrements, CusumTest
-from .likelihood_law import LikelihoodRatioLaw, law_of
+from .likelihood_law import LikelihoodRatioLaw, law_of, opening
 from .process import flag_process
 
 __all__ = [
@@ -39,7 +43,7 @@ __all__ = [
 #: a blocker that silences the sensor's fallback a fifth of the time.
 DEFAULT_ALTERNATIVE = RandomBlocking(0.2)
 #: Grid steps per standard deviation of one step's increment.
-RESOLUTION = 4.0
+RESOLUTION = 8.0
 
 _TESTS: dict[tuple[Any, ...], LikelihoodRatioTest] = {}
 
@@ -91,7 +95,7 @@ def likelihood_ratio_law(
     true_channel : Channel or float, optional
         The channel the window is played on (default ``channel``).
     resolution : float, optional
-        Grid steps per standard deviation of one step's increment (default 4), > 0.
+        Grid steps per standard deviation of one step's increment (default 8), > 0.
 
     Returns
     -------
@@ -145,13 +149,15 @@ class LikelihoodRatioTest:
     def statistic(self, delivered: npt.ArrayLike, gap: int) -> float:
         r""":math:`\Lambda_n` of a window: ``delivered[k]`` whether a flag-ACK reached the sensor at
         step k, ``gap`` the steps since the last one before the window, plus one (y of the first
-        step, >= 1)."""
+        step, >= 1): the opening term of ``gap`` plus the window's increments."""
         x = np.asarray(delivered)
         if x.ndim != 1 or x.dtype != bool:
             raise TypeError("delivered must be a 1-D boolean array")
         y = as_int("gap", gap, minimum=1)
         Y = self.increments.length
-        total = 0.0
+        total = float(opening(self.increments, np.array([y]))[0])
+        if total == math.inf:
+            return math.inf
         for flag in x:
             step = self.increments.flag[min(y, Y) - 1] if flag else self.increments.quiet[min(y, Y) - 1]
             if step == math.inf:
@@ -171,12 +177,9 @@ class LikelihoodRatioTest:
 
 
 def _critical(law: LikelihoodRatioLaw, alpha: float) -> tuple[float, float]:
-    """The smallest grid value c with P(statistic >= c) <= alpha, and that probability."""
-    tail = np.cumsum(law.probability[::-1])[::-1] + law.above + law.alarm
-    ok = np.flatnonzero(tail <= alpha)
-    if ok.size == 0:  # only the values above the band are rare enough
-        return float(law.values[-1] + law.step), float(law.above + law.alarm)
-    return float(law.values[ok[0]]), float(tail[ok[0]])
+    """The critical value at level alpha and the tail the law gives there."""
+    c = law.quantile(alpha)
+    return c, law.tail(c)
 
 
 def likelihood_ratio_test(

@@ -42,6 +42,7 @@ __all__ = [
     "LikelihoodRatioLaw",
     "MAX_LAW_WORK",
     "law_of",
+    "opening",
 ]
 
 #: Largest (transitions x grid points x steps) of one law, about half a minute on one core.
@@ -75,43 +76,122 @@ class LikelihoodRatioLaw:
     n_steps: int
 
     def tail(self, critical: float) -> float:
-        r""":math:`P(\Lambda_n \ge` ``critical``) on the grid, with the infinite values and the mass
-        above the band."""
+        r""":math:`P(\Lambda_n \ge` ``critical``), with the infinite values and the mass above
+        the band.
+
+        Each grid point's mass is read as spread over the hat :math:`[v - \Delta, v + \Delta]`,
+        the inverse of the split rounding (a point split between two grid points and read back
+        this way keeps its mean): the tail is then continuous in the critical value and free of
+        the first-order bias of counting whole grid cells.
+        """
         c = float(critical)
         if c == math.inf:
             return self.alarm
-        # A relative 1e-9 of a grid step absorbs the rounding of a grid value equal to c.
-        first = int(np.searchsorted(self.values, c - 1e-9 * self.step, side="left"))
-        return float(min(1.0, self.probability[first:].sum() + self.above + self.alarm))
+        t = (self.values - c) / self.step
+        inside = np.where(
+            t >= 0.0, 1.0 - 0.5 * (1.0 - np.minimum(t, 1.0)) ** 2, 0.5 * (1.0 + np.maximum(t, -1.0)) ** 2
+        )
+        share = np.where(t >= 1.0, 1.0, np.where(t <= -1.0, 0.0, inside))
+        return float(min(1.0, self.probability @ share + self.above + self.alarm))
+
+    def quantile(self, alpha: float) -> float:
+        r"""The value c with :math:`P(\Lambda_n \ge c) = ` ``alpha`` on the law read as in
+        :meth:`tail` (continuous, decreasing in c where the law has mass)."""
+        base = self.above + self.alarm
+        if base >= alpha:
+            return math.inf
+        lo, hi = float(self.values[0]) - self.step, float(self.values[-1]) + self.step
+        for _ in range(200):  # bisection to a relative 1e-12 of a grid step
+            mid = 0.5 * (lo + hi)
+            if self.tail(mid) > alpha:
+                lo = mid
+            else:
+                hi = mid
+            if hi - lo < 1e-12 * self.step:
+                break
+        return hi
 
 
-def _stationary_ages(process: FlagProcess, Y: int) -> FloatArray:
-    """P(age a, state e), a = 0..Y-1 (age capped at Y - 1): (pi D1 D0^a)_e below the cap, the
-    rest of pi at it."""
+def opening(inc: CusumIncrements, y: FloatArray) -> FloatArray:
+    r"""The log-likelihood ratio :math:`\log(P_a(y_0)/P_0(y_0))` of the gap :math:`y_0` already
+    running at the window's start, under the stationary age laws :math:`P(y_0 = y) = S(y)/m` of
+    the two renewal laws (S the survival, m the mean gap):
+    :math:`\sum_{j<y} \text{quiet}_j + \log(m_0/m_a)`, the quiet table's last entry holding on."""
+    q = inc.quiet
+    Y = q.size
+    m0, ma = _mean_gap(inc.h0), _mean_gap(inc.ha)
+    if ma == math.inf:
+        raise ValueError("alternative: a law that may never deliver a flag-ACK has no stationary gap")
+    base = math.log(m0) - math.log(ma) if ma > 0.0 else -math.inf
+    with np.errstate(invalid="ignore"):
+        head = np.concatenate(([0.0], np.cumsum(q[:-1])))  # sum over j < y, y = 1..Y
+    pos = np.concatenate(([False], np.cumsum(q[:-1] == math.inf) > 0))
+    neg = np.concatenate(([False], np.cumsum(q[:-1] == -math.inf) > 0))
+    head = np.where(pos, math.inf, np.where(neg, -math.inf, head))
+    yy = np.asarray(y, dtype=np.int64)
+    capped = np.minimum(yy, Y)
+    out = head[capped - 1]
+    beyond = yy > Y
+    if beyond.any():
+        with np.errstate(invalid="ignore"):
+            extra = np.where(q[-1] == 0.0, 0.0, (yy - Y) * q[-1])
+        out = np.where(beyond & np.isfinite(out), out + extra, out)
+    return np.asarray(out + base, dtype=np.float64)
+
+
+def _mean_gap(h: FloatArray) -> float:
+    """The mean gap of a renewal law from its hazards (the last one holding on)."""
+    survival = np.concatenate(([1.0], np.cumprod(1.0 - h[:-1])))
+    tail = survival[-1]
+    if tail <= 0.0:
+        return float(survival[:-1].sum() + tail)
+    if h[-1] <= 0.0:
+        return math.inf
+    return float(survival[:-1].sum() + tail / h[-1])
+
+
+def _stationary_ages(process: FlagProcess, limit: int = 100_000) -> FloatArray:
+    """P(age a, state e), a = 0, 1, ... (age = y0 - 1): (pi D1 D0^a)_e until less than 1e-16 of
+    the mass is left; the rest (a law that rarely delivers) at the last age."""
     D0t = process.D0.T.tocsr()
-    f = np.zeros((Y, process.n_states))
+    rows = []
     row = np.asarray(process.stationary @ process.D1).ravel()
-    for a in range(Y - 1):
-        f[a] = row
+    left = 1.0
+    for _ in range(limit):
+        rows.append(row)
+        left -= float(row.sum())
+        if left <= 1e-16:
+            break
         row = D0t @ row
-    f[Y - 1] = np.clip(process.stationary - f[: Y - 1].sum(axis=0), 0.0, None)
-    return f
+    f = np.array(rows)
+    f[-1] += np.clip(process.stationary - f.sum(axis=0), 0.0, None)
+    return np.asarray(f, dtype=np.float64)
 
 
 @dataclass(frozen=True)
 class _Chain:
-    """The (age, state) chain on the stationary support: its transitions and their increments."""
+    """The (age, state) chain on the stationary support: its transitions and their increments,
+    and the window's start: (state, opening value, mass)."""
 
-    start: FloatArray
+    n_states: int
     src: np.ndarray
     dst: np.ndarray
     weight: FloatArray
     inc: FloatArray
+    start_state: np.ndarray
+    start_value: FloatArray
+    start_mass: FloatArray
+
+    def stationary(self) -> FloatArray:
+        return np.asarray(np.bincount(self.start_state, self.start_mass, minlength=self.n_states))
 
 
 def _chain(process: FlagProcess, inc: CusumIncrements) -> _Chain:
     Y, n_e = inc.length, process.n_states
-    f = _stationary_ages(process, Y)
+    full = _stationary_ages(process)
+    f = np.zeros((Y, n_e))
+    f[: min(Y - 1, full.shape[0])] = full[: Y - 1]
+    f[Y - 1] = full[Y - 1 :].sum(axis=0)
     live = f.ravel() > 0.0
     index = np.full(Y * n_e, -1)
     index[live] = np.arange(int(live.sum()))
@@ -127,15 +207,17 @@ def _chain(process: FlagProcess, inc: CusumIncrements) -> _Chain:
         keep = live[src] & (w > 0.0)
         parts.append((index[src[keep]], index[dst[keep]], w[keep], x[keep]))
     src, dst, w, x = (np.concatenate([p[i] for p in parts]) for i in range(4))
-    return _Chain(f.ravel()[live], src, dst, w, x)
+    a, e = np.nonzero(full > 0.0)
+    state = index[np.minimum(a, Y - 1) * n_e + e]
+    return _Chain(int(live.sum()), src, dst, w, x, state, opening(inc, a + 1), full[a, e])
 
 
 def _moments(chain: _Chain) -> tuple[float, float]:
     """The mean increment per step and the variance rate of the finite increments (an infinite
     one counts as 0 here: it ends the statistic's finite life, and only sizes the grid)."""
-    S = chain.start.size
+    S = chain.n_states
     r = np.where(np.isfinite(chain.inc), chain.inc, 0.0)
-    pi = chain.start
+    pi = chain.stationary()
     flow = pi[chain.src] * chain.weight
     m = float(flow @ r)
     P = sp.csr_array((chain.weight, (chain.src, chain.dst)), shape=(S, S))
@@ -146,20 +228,25 @@ def _moments(chain: _Chain) -> tuple[float, float]:
 
 
 def law_of(process: FlagProcess, inc: CusumIncrements, n: int, resolution: float) -> LikelihoodRatioLaw:
-    """The grid law of the window's statistic; ``resolution`` grid steps per standard deviation
-    of one step's increment (:math:`\\Delta = \\sigma`/resolution)."""
+    r"""The grid law of the window's statistic; ``resolution`` grid steps per standard deviation
+    of one step's increment (:math:`\Delta = \sigma`/resolution)."""
     chain = _chain(process, inc)
     m, var = _moments(chain)
     finite = np.isfinite(chain.inc)
     spread = float(np.abs(chain.inc[finite] - m).max()) if finite.any() else 0.0
+    x0, p0 = chain.start_value, chain.start_mass
+    ok0 = np.isfinite(x0)
+    c0 = float(p0[ok0] @ x0[ok0] / max(p0[ok0].sum(), 1e-300)) if ok0.any() else 0.0
+    var0 = float(p0[ok0] @ (x0[ok0] - c0) ** 2) if ok0.any() else 0.0
+    reach0 = float(np.abs(x0[ok0] - c0).max()) if ok0.any() else 0.0
     sd = math.sqrt(var)
     if sd <= 1e-12 * max(spread, 1.0):  # a statistic without spread: any grid carries it exactly
         delta = max(spread, 1.0)
     else:
         delta = sd / resolution
-    half = min(n * spread, BAND_SDS * math.sqrt(n * var) + 4.0 * spread) + 2.0 * delta
+    half = min(reach0 + n * spread, BAND_SDS * math.sqrt(n * var + var0) + 4.0 * spread) + 2.0 * delta
     J = int(math.ceil(half / delta))
-    G, S = 2 * J + 1, chain.start.size
+    G, S = 2 * J + 1, chain.n_states
     T = int(chain.src.size)
     work = 2 * T * G * n
     if work > MAX_LAW_WORK:
@@ -169,13 +256,12 @@ def law_of(process: FlagProcess, inc: CusumIncrements, n: int, resolution: float
             "the resolution or the window"
         )
     M = _step_matrix(chain, m, delta, G)
-    v: FloatArray = np.zeros(S * G + S + 3)
-    v[np.arange(S) * G + J] = chain.start
+    v: FloatArray = _start_vector(chain, c0, delta, G, J)
     for _ in range(n):
         v = np.asarray(M @ v, dtype=np.float64)
-    grid: FloatArray = np.asarray(v[: S * G].reshape(S, G).sum(axis=0), dtype=np.float64)
+    grid = np.asarray(v[: S * G].reshape(S, G).sum(axis=0), dtype=np.float64)
     top, bottom, alarm = (float(v[S * G + S + k]) for k in range(3))
-    values = np.asarray(n * m + (np.arange(G) - J) * delta, dtype=np.float64)
+    values = np.asarray(c0 + n * m + (np.arange(G) - J) * delta, dtype=np.float64)
     return LikelihoodRatioLaw(
         values,
         np.asarray(np.clip(grid, 0.0, None), dtype=np.float64),
@@ -183,18 +269,39 @@ def law_of(process: FlagProcess, inc: CusumIncrements, n: int, resolution: float
         float(max(v[S * G : S * G + S].sum(), 0.0)),
         max(top, 0.0),
         max(bottom, 0.0),
-        n * m,
+        c0 + n * m,
         var,
         delta,
         n,
     )
 
 
+def _start_vector(chain: _Chain, c0: float, delta: float, G: int, J: int) -> FloatArray:
+    """The window's first law on [(state, grid point) ..., (state at -inf) ..., above, below,
+    alarm], the opening value split between its two grid points."""
+    S = chain.n_states
+    v = np.zeros(S * G + S + 3)
+    s, x, p = chain.start_state, chain.start_value, chain.start_mass
+    np.add.at(v, S * G + S + 2, p[x == math.inf].sum())
+    np.add.at(v, S * G + s[x == -math.inf], p[x == -math.inf])
+    ok = np.isfinite(x)
+    pos = (x[ok] - c0) / delta + J
+    lo = np.floor(pos)
+    frac = pos - lo
+    for k, share in ((lo, 1.0 - frac), (lo + 1.0, frac)):
+        kk = k.astype(np.int64)
+        where = np.where(
+            kk >= G, S * G + S, np.where(kk < 0, S * G + S + 1, s[ok] * G + np.clip(kk, 0, G - 1))
+        )
+        np.add.at(v, where, p[ok] * share)
+    return np.asarray(v, dtype=np.float64)
+
+
 def _step_matrix(chain: _Chain, m: float, delta: float, G: int) -> sp.csr_array:
     """One step over the vector [(state, grid point) ..., (state at -inf) ..., above, below,
     alarm]: each finite increment moves the grid point by (inc - m)/delta, split between the two
     neighbours; leaving the band lands in `above` or `below`; +inf lands in `alarm`."""
-    S = chain.start.size
+    S = chain.n_states
     minus, above, below, alarm = S * G, S * G + S, S * G + S + 1, S * G + S + 2
     rows, cols, vals = [], [], []
     j = np.arange(G)
