@@ -110,8 +110,8 @@ def likelihood_ratio_law(
     --------
     >>> from fakeack.detection import likelihood_ratio_law
     >>> law = likelihood_ratio_law(0.5, 2, 1000)
-    >>> round(law.mean, 2)   # n times minus the Kullback-Leibler rate
-    -4.99
+    >>> round(law.mean, 2)   # the opening's mean, then minus the Kullback-Leibler rate per step
+    -5.03
     """
     ch = as_channel(channel, "channel")
     design = _design(z0, mu)

@@ -32,6 +32,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+import numpy.typing as npt
 import scipy.sparse as sp
 
 from .._internal.types import FloatArray
@@ -92,7 +93,7 @@ class LikelihoodRatioLaw:
             t >= 0.0, 1.0 - 0.5 * (1.0 - np.minimum(t, 1.0)) ** 2, 0.5 * (1.0 + np.maximum(t, -1.0)) ** 2
         )
         share = np.where(t >= 1.0, 1.0, np.where(t <= -1.0, 0.0, inside))
-        return float(min(1.0, self.probability @ share + self.above + self.alarm))
+        return min(1.0, float(self.probability @ share) + self.above + self.alarm)
 
     def quantile(self, alpha: float) -> float:
         r"""The value c with :math:`P(\Lambda_n \ge c) = ` ``alpha`` on the law read as in
@@ -112,7 +113,7 @@ class LikelihoodRatioLaw:
         return hi
 
 
-def opening(inc: CusumIncrements, y: FloatArray) -> FloatArray:
+def opening(inc: CusumIncrements, y: npt.ArrayLike) -> FloatArray:
     r"""The log-likelihood ratio :math:`\log(P_a(y_0)/P_0(y_0))` of the gap :math:`y_0` already
     running at the window's start, under the stationary age laws :math:`P(y_0 = y) = S(y)/m` of
     the two renewal laws (S the survival, m the mean gap):
