@@ -5,25 +5,34 @@ In a window of n steps the sensor sums the per-step increments of :class:`fakeac
 on a silent one; the last entry of the tables holds for longer gaps), without the CUSUM's
 reflection at 0:
 
-.. math:: \Lambda_n = \sum_{k=1}^n \ell_k .
+.. math:: \Lambda_n = \log\frac{P_a(y_0)}{P_0(y_0)} + \sum_{k=1}^n \ell_k ,
+
+opened by the log-likelihood ratio of the gap :math:`y_0` already running at the window's start
+under the two stationary age laws :math:`P(y_0 = y) = S(y)/m` (S the survival of the gap law, m its
+mean; :func:`opening`).
 
 The increment of a step is a function of the gap y before it and of whether a flag-ACK came, and
 the deliveries are the Markov arrival process :math:`K = D_0 + D_1` of the exact engine's
 automaton (:func:`fakeack.flag_process`), so (automaton state e, age a = y - 1 capped at Y - 1,
-:math:`\Lambda`) is a Markov chain. The window starts in the long-run regime: (a, e) has the
-stationary law :math:`P(a, e) = (\pi D_1 D_0^{a})_e` for a < Y - 1, the rest of :math:`\pi` at
-the cap. :math:`\Lambda` moves on a grid of spacing :math:`\Delta`, centred on its exact mean
-drift m (the mean increment under the stationary law), each new value split between its two grid
-points in proportion to the distance: the split keeps the mean of :math:`\Lambda` exactly and adds
-at most :math:`\Delta^2/4` of variance per step, against the statistic's own variance rate
-:math:`\sigma^2` per step; the grid's spacing is a fixed fraction of :math:`\sigma`, so the
+:math:`\Lambda`) is a Markov chain. The window starts in the long-run regime: the age and state
+have the stationary law :math:`P(a, e) = (\pi D_1 D_0^{a})_e`, each age with its own opening
+value (ages past the cap share the chain's state but not the opening). :math:`\Lambda` moves on
+a grid of spacing :math:`\Delta`, centred on its exact mean drift m (the mean increment under the
+stationary law), each new value split between its two grid points in proportion to the distance:
+the split keeps the mean of :math:`\Lambda` exactly and adds at most :math:`\Delta^2/4` of
+variance per step, against the statistic's own variance rate :math:`\sigma^2` per step; the
+grid's spacing is a fixed fraction of :math:`\sigma`, so the
 relative distortion does not grow with n. Where the attack-free law cannot produce a step's
 outcome the increment is :math:`+\infty`: the window alarms (the support check); where only the
 alternative cannot, :math:`-\infty` (kept apart, still watched for a later :math:`+\infty`).
 
 The band of the grid holds :math:`m n \pm 8\sqrt{n\sigma^2}` (never more than the n steps can
 reach), with :math:`\sigma^2` from the Poisson equation of the (a, e) chain; the mass that leaves
-it is reported (``lost``; above the band it counts as a large value).
+it is reported (``above``, ``below``; above the band it counts as a large value). The law is read
+back through hat kernels (:meth:`LikelihoodRatioLaw.tail`), the inverse of the split rounding,
+which removes the first-order bias of counting whole grid cells; what remains shrinks between
+first and second order in the spacing (the law of :math:`\Lambda_n` is itself a lattice-like
+discrete law), so the error is stated by recomputing on a grid twice as coarse.
 """
 
 from __future__ import annotations
@@ -193,10 +202,7 @@ def _chain(process: FlagProcess, inc: CusumIncrements) -> _Chain:
     f = np.zeros((Y, n_e))
     f[: min(Y - 1, full.shape[0])] = full[: Y - 1]
     f[Y - 1] = full[Y - 1 :].sum(axis=0)
-    live = f.ravel() > 0.0
-    index = np.full(Y * n_e, -1)
-    index[live] = np.arange(int(live.sum()))
-    parts = []
+    edges = []
     for D, table, flag in ((process.D1, inc.flag, True), (process.D0, inc.quiet, False)):
         coo = D.tocoo()
         ages = np.arange(Y)
@@ -205,9 +211,22 @@ def _chain(process: FlagProcess, inc: CusumIncrements) -> _Chain:
         dst = (nxt[:, None] * n_e + coo.col[None, :]).ravel()
         w = np.broadcast_to(coo.data[None, :], (Y, coo.nnz)).ravel()
         x = np.broadcast_to(table[:, None], (Y, coo.nnz)).ravel()
-        keep = live[src] & (w > 0.0)
-        parts.append((index[src[keep]], index[dst[keep]], w[keep], x[keep]))
-    src, dst, w, x = (np.concatenate([p[i] for p in parts]) for i in range(4))
+        keep = w > 0.0
+        edges.append((src[keep], dst[keep], w[keep], x[keep]))
+    src, dst, w, x = (np.concatenate([p[i] for p in edges]) for i in range(4))
+    # The states the window can visit: those of the start law (mass underflowing far out in the
+    # age may leave some out) and all they lead to.
+    live = f.ravel() > 0.0
+    while True:
+        reached = np.zeros_like(live)
+        reached[dst[live[src]]] = True
+        if not (reached & ~live).any():
+            break
+        live |= reached
+    index = np.full(Y * n_e, -1)
+    index[live] = np.arange(int(live.sum()))
+    keep = live[src]
+    src, dst, w, x = index[src[keep]], index[dst[keep]], w[keep], x[keep]
     a, e = np.nonzero(full > 0.0)
     state = index[np.minimum(a, Y - 1) * n_e + e]
     return _Chain(int(live.sum()), src, dst, w, x, state, opening(inc, a + 1), full[a, e])
