@@ -104,7 +104,7 @@ def likelihood_ratio_law(
     Raises
     ------
     ValueError, TypeError
-        For a bad argument (naming it), or a law past about 2e10 operations (naming ``n_steps``).
+        For a bad argument (naming it), or a law past about 6e10 operations (naming ``n_steps``).
 
     Examples
     --------

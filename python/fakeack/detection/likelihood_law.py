@@ -55,8 +55,8 @@ __all__ = [
     "opening",
 ]
 
-#: Largest (transitions x grid points x steps) of one law, about half a minute on one core.
-MAX_LAW_WORK = 2 * 10**10
+#: Largest (transitions x grid points x steps) of one law, about a minute on one core.
+MAX_LAW_WORK = 6 * 10**10
 #: Standard deviations of the final law on each side of its mean held by the grid's band.
 BAND_SDS = 8.0
 
