@@ -166,6 +166,13 @@ def test_the_law_keeps_its_mass():
     assert total == pytest.approx(1.0, abs=1e-12)
 
 
+def test_the_curves_take_the_lr_test():
+    curves = fa.detection_curves(0.5, 2, [None, fa.MimicryAttack()], [150], tests=["lr", "count"])
+    np.testing.assert_allclose(curves.probability[0, :, 0], 0.01, atol=1e-9)
+    with pytest.raises(ValueError, match="^tests"):
+        fa.detection_curves(0.5, 2, [None], [150], tests=["likelihood"])
+
+
 @pytest.mark.parametrize(
     ("kwargs", "error", "name"),
     [
