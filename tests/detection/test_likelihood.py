@@ -166,6 +166,20 @@ def test_the_law_keeps_its_mass():
     assert total == pytest.approx(1.0, abs=1e-12)
 
 
+def test_a_gap_pmf_alternative_sends_longer_gaps_to_minus_infinity():
+    """Gaps of 3 or 4 steps only: a window holding a longer gap (or opening in one) has
+    Lambda = -inf under any law, so P(-inf) is at least P(the running gap passes 4 steps within
+    the first step): the attack-free stationary age law beyond 4, S(y)/m summed over y >= 5."""
+    pmf = fa.flag_interval_law(0.5, 2).pmf
+    s = np.cumsum(pmf[::-1])[::-1]
+    m = float(np.arange(1, pmf.size + 1) @ pmf)
+    law = likelihood_ratio_law(0.5, 2, 50, alternative=[0, 0, 0.5, 0.5])
+    assert law.minus_infinity >= float(s[4:].sum()) / m
+    assert law.probability.sum() + law.alarm + law.minus_infinity == pytest.approx(1.0, abs=1e-12)
+    with pytest.raises(ValueError, match="^alternative"):
+        likelihood_ratio_test(0.5, 2, 50, alternative=fa.RandomBlocking(0.0))
+
+
 def test_the_curves_take_the_lr_test():
     curves = fa.detection_curves(0.5, 2, [None, fa.MimicryAttack()], [150], tests=["lr", "count"])
     np.testing.assert_allclose(curves.probability[0, :, 0], 0.01, atol=1e-9)

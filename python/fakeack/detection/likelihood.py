@@ -138,8 +138,10 @@ class LikelihoodRatioTest:
     critical: float
     r"""Alarm when :math:`\Lambda_n \ge` this value."""
     alpha_reached: float
-    """The attack-free P(alarm) at ``critical``, at most ``alpha`` (the conservative side of the
-    law's atom at the quantile; no randomisation)."""
+    """The attack-free P(alarm) at ``critical`` on the law as read (equal to ``alpha`` to rounding).
+    The hat kernels act as a randomisation at the scale of the grid: the statistic's own atoms
+    lie much closer together than the grid's spacing where its increments are many and
+    unrelated, and the level then holds up to the grid's error."""
     error: float
     """How far ``critical`` moves on a grid twice as coarse: its stated accuracy."""
     increments: CusumIncrements = field(repr=False)
@@ -194,10 +196,11 @@ def likelihood_ratio_test(
     r"""The likelihood-ratio test of a window against ``alternative``: its critical value.
 
     The statistic :math:`\Lambda_n` (module docstring) has an exact attack-free law
-    (:func:`likelihood_ratio_law`); the critical value is the smallest grid value whose tail is at
-    most ``alpha``, so the false-alarm rate reached is at most alpha (the conservative side of the
-    atom at the quantile; ``alpha_reached`` says how close). By Neyman and Pearson, no test of the
-    same level detects ``alternative`` more often.
+    (:func:`likelihood_ratio_law`); the critical value c solves :math:`P(\Lambda_n \ge c)` =
+    ``alpha`` on it, read through hat kernels (:meth:`fakeack.detection.LikelihoodRatioLaw.tail`),
+    which act as a randomisation at the scale of the grid; ``error`` is how far c moves on a grid
+    twice as coarse. By Neyman and Pearson, no test of the same level detects ``alternative``
+    more often. An alternative with the attack-free gap law (every finite increment 0) is refused.
 
     Parameters
     ----------
@@ -244,6 +247,12 @@ def likelihood_ratio_test(
     if key in _TESTS:
         return _TESTS[key]
     inc = cusum.increments(ch, design)
+    steps = np.concatenate((inc.flag, inc.quiet))
+    if not np.any((steps == -math.inf) | (np.isfinite(steps) & (np.abs(steps) > 1e-12))):
+        raise ValueError(
+            f"alternative: {alt} has the attack-free gap law; the statistic is the support check "
+            "alone (test='support')"
+        )
     process = flag_process(ch, design)
     null = law_of(process, inc, n, RESOLUTION)
     critical, reached = _critical(null, level)

@@ -142,10 +142,11 @@ def opening(inc: CusumIncrements, y: npt.ArrayLike) -> FloatArray:
     capped = np.minimum(yy, Y)
     out = head[capped - 1]
     beyond = yy > Y
-    if beyond.any():
-        with np.errstate(invalid="ignore"):
-            extra = np.where(q[-1] == 0.0, 0.0, (yy - Y) * q[-1])
-        out = np.where(beyond & np.isfinite(out), out + extra, out)
+    if beyond.any() and q[-1] != 0.0:  # the last entry holds on: y - Y more silent steps
+        add = np.zeros(out.shape)
+        add[beyond] = (yy[beyond] - Y) * q[-1]
+        with np.errstate(invalid="ignore"):  # +inf and -inf meet only where out stays as it is
+            out = np.where(beyond & np.isfinite(out), out + add, out)
     return np.asarray(out + base, dtype=np.float64)
 
 
