@@ -149,9 +149,21 @@ class LikelihoodRatioTest:
     """The attack-free law of the statistic."""
 
     def statistic(self, delivered: npt.ArrayLike, gap: int) -> float:
-        r""":math:`\Lambda_n` of a window: ``delivered[k]`` whether a flag-ACK reached the sensor at
-        step k, ``gap`` the steps since the last one before the window, plus one (y of the first
-        step, >= 1): the opening term of ``gap`` plus the window's increments."""
+        r""":math:`\Lambda_n` of a window: the opening of ``gap`` plus the window's increments.
+
+        Parameters
+        ----------
+        delivered : numpy.ndarray of bool
+            ``delivered[k]``: whether a flag-ACK reached the sensor at the window's step k.
+        gap : int
+            The gap y of the window's first step: 1 if a flag-ACK reached the sensor on the step
+            just before the window, one more for each silent step since.
+
+        Returns
+        -------
+        float
+            ``+inf`` where a step's outcome is impossible without attack.
+        """
         x = np.asarray(delivered)
         if x.ndim != 1 or x.dtype != bool:
             raise TypeError("delivered must be a 1-D boolean array")
