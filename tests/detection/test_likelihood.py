@@ -220,4 +220,6 @@ def test_bad_arguments_of_the_law_and_the_detection_probability_are_named():
     with pytest.raises(TypeError, match="^delivered"):
         test.statistic([1, 0], 3)
     with pytest.raises(ValueError, match="^gap"):
-        test.statistic(np.array([True]), 0)
+        test.statistic(np.zeros(100, bool), 0)
+    with pytest.raises(ValueError, match="^delivered"):
+        test.statistic(np.array([True]), 3)

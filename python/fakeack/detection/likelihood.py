@@ -167,6 +167,8 @@ class LikelihoodRatioTest:
         x = np.asarray(delivered)
         if x.ndim != 1 or x.dtype != bool:
             raise TypeError("delivered must be a 1-D boolean array")
+        if x.size != self.n_steps:
+            raise ValueError(f"delivered: the test is for windows of {self.n_steps} steps, got {x.size}")
         y = as_int("gap", gap, minimum=1)
         Y = self.increments.length
         total = float(opening(self.increments, np.array([y]))[0])
@@ -181,8 +183,22 @@ class LikelihoodRatioTest:
         return total
 
     def detection_probability(self, attack: object = None, true_channel: ChannelLike | None = None) -> float:
-        """P(alarm) in a stationary window under ``attack`` on ``true_channel`` (default the
-        test's channel); ``None``: ``alpha_reached``."""
+        r"""P(alarm) in a stationary window under an attack, from the exact law of the statistic
+        (:func:`likelihood_ratio_law`).
+
+        Parameters
+        ----------
+        attack : optional
+            Any attack :class:`fakeack.Scenario` takes (None: the false-alarm rate,
+            ``alpha_reached``).
+        true_channel : Channel or float, optional
+            The channel the window is played on (default the test's channel).
+
+        Returns
+        -------
+        float
+            P(:math:`\Lambda_n \ge` ``critical``).
+        """
         if attack is None and true_channel is None:
             return self.alpha_reached
         truth = self.channel if true_channel is None else as_channel(true_channel, "true_channel")
