@@ -1,8 +1,8 @@
 """The tables of the README's "Detection and the game", for the paper's example.
 
-    python examples/game_tables.py [detection|frontier|windows|responses ...]
+    python examples/game_tables.py [detection|frontier|windows|responses|curves|lr ...]
 
-(all four by default). Every number is computed here; the simulated ones have fixed seeds.
+(all by default). Every number is computed here; the simulated ones have fixed seeds.
 """
 
 from __future__ import annotations
@@ -121,6 +121,38 @@ def curves() -> None:
             print(f"| {test} | {'no attack' if a is None else a} | {cells} |")
 
 
+def lr() -> None:
+    """The likelihood-ratio test beside the count, interval and support tests, at equal alpha
+    (the docs page's section "The likelihood-ratio test")."""
+    from fakeack.detection import likelihood_ratio_law, likelihood_ratio_test
+
+    n, alpha = 1000, 0.01
+    careful = fa.FlagInjection(0.02, min_gap=Z0 + 1)
+    tuned = {"lr vs blocking": fa.RandomBlocking(0.2), "lr vs careful forger": careful}
+    attacks = [
+        None,
+        fa.RandomBlocking(0.2),
+        fa.RandomBlocking(0.5),
+        fa.PeriodicBlocking(1, 5),
+        careful,
+        fa.rate_matching_attack(LAM, Z0, 0.2),
+        fa.rate_matching_attack(LAM, Z0, 0.2, min_gap=Z0 + 1),
+        fa.rate_matching_attack(LAM, Z0, 0.975, min_gap=Z0 + 1),
+        fa.MimicryAttack(),
+    ]
+    names = ["count", "interval", "support", *tuned]
+    print(f"detection per window of {n} steps at alpha = {alpha}; lr: estimate (grid error)")
+    print("| attack | " + " | ".join(names) + " |")
+    for a in attacks:
+        row = [f"{fa.detection_probability(LAM, Z0, a, n, alpha, t):.4f}" for t in names[:3]]
+        for alt in tuned.values():
+            test = likelihood_ratio_test(LAM, Z0, n, alpha, alternative=alt)
+            p = test.detection_probability(a)
+            coarse = likelihood_ratio_law(LAM, Z0, n, a, alternative=alt, resolution=4.0).tail(test.critical)
+            row.append(f"{p:.4f} ({abs(p - coarse):.1g})")
+        print(f"| {'no attack' if a is None else a} | " + " | ".join(row) + " |", flush=True)
+
+
 #: The attacks and windows of the detection curves.
 CURVE_ATTACKS = [
     None,
@@ -140,6 +172,7 @@ if __name__ == "__main__":
         "windows": windows,
         "responses": responses,
         "curves": curves,
+        "lr": lr,
     }
     for name in sys.argv[1:] or list(tables):
         tables[name]()

@@ -35,6 +35,7 @@ DOCTEST_MODULES = [
     "detection.flags",
     "detection.interval_test",
     "detection.intervals",
+    "detection.likelihood",
     "detection.probability",
     "detection.run_length",
     "game.policies",

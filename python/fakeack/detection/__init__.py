@@ -10,7 +10,9 @@ under any attack (``None``: the false-alarm rate), from the exact laws of
 ``fakeack.detection.intervals`` and the stated normal approximations. :func:`flag_process` gives
 the delivered flag-ACKs on any channel as a Markov arrival process over the exact engine's
 automaton: their rate, variance rate and the exact count law of a window. :class:`CusumTest` is
-the sequential test for an attack's onset, with its run lengths from :func:`cusum_run_length`.
+the sequential test for an attack's onset, with its run lengths from :func:`cusum_run_length`;
+:func:`likelihood_ratio_test` the window's likelihood-ratio test against an alternative, with the
+exact law of its statistic from :func:`likelihood_ratio_law`.
 
 The interval statistic's law under an attack lives in ``interval_power`` (from the gap walk of
 ``intervals`` or the flag process's bin moments of ``gap_bins``); the support check's joint laws
@@ -23,6 +25,8 @@ from .cusum import CusumIncrements, CusumTest
 from .flags import FlagRates, delivered_flag_rate, estimate_beta, flag_interval_moments, flag_rates
 from .interval_test import IntervalDetection, IntervalTest, detect_intervals, interval_test
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
+from .likelihood import LikelihoodRatioTest, likelihood_ratio_law, likelihood_ratio_test
+from .likelihood_law import LikelihoodRatioLaw
 from .probability import TESTS, detection_probability
 from .process import FlagProcess, flag_process
 from .rates import DetectionRates, detection_rates
@@ -60,4 +64,8 @@ __all__ = [
     "CusumRunLength",
     "cusum_run_length",
     "cusum_threshold",
+    "LikelihoodRatioTest",
+    "likelihood_ratio_test",
+    "LikelihoodRatioLaw",
+    "likelihood_ratio_law",
 ]

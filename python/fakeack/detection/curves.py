@@ -23,8 +23,11 @@ __all__ = [
     "detection_curves",
 ]
 
-#: The tests a curve may show: the two flag-timing tests and the support check alone.
-CURVE_TESTS = ("count", "interval", "support")
+#: The tests a curve may show: the two flag-timing tests, the support check alone and the
+#: likelihood-ratio test.
+CURVE_TESTS = ("count", "interval", "support", "lr")
+#: The tests drawn unless told.
+DEFAULT_TESTS = ("count", "interval", "support")
 
 
 @dataclass(frozen=True)
@@ -49,10 +52,11 @@ def detection_curves(
     attacks: Sequence[AttackLike | MimicryAttack | AttackerAutomaton],
     n_steps: Sequence[int],
     alpha: float = 0.01,
-    tests: Sequence[str] = CURVE_TESTS,
+    tests: Sequence[str] = DEFAULT_TESTS,
     mu: float = 1.0,
     *,
     support: bool = True,
+    lr_alternative: object = None,
 ) -> DetectionCurves:
     r"""The detection probability per window (:func:`fakeack.detection_probability`) of each test
     and attack over a range of window lengths.
@@ -70,13 +74,16 @@ def detection_curves(
         Window lengths, each >= 1.
     alpha : float, optional
         False-alarm level of the count and interval tests (default 0.01).
-    tests : sequence of {"count", "interval", "support"}, optional
-        The tests (default all three; ``"support"`` is the support check alone).
+    tests : sequence of {"count", "interval", "support", "lr"}, optional
+        The tests (default the first three; ``"support"`` is the support check alone, ``"lr"``
+        the likelihood-ratio test of :func:`fakeack.likelihood_ratio_test`).
     mu : float, optional
         Probability of the z0-bit memory at each step (default 1).
     support : bool, optional
         Whether the count and interval tests run with the support check beside them (default
-        True).
+        True; the ``"lr"`` test holds it in its statistic).
+    lr_alternative : optional
+        The attack the ``"lr"`` test is tuned to (default ``RandomBlocking(0.2)``).
 
     Returns
     -------
@@ -104,7 +111,6 @@ def detection_curves(
             if test == "interval" and n * rate < MIN_EXPECTED_FLAGS:
                 continue  # the interval test refuses such windows
             for j, a in enumerate(attacks_):
-                out[i, j, k] = detection_probability(
-                    channel, z0, a, int(n), level, test, mu=mu, support=support
-                )
+                extra = {"lr_alternative": lr_alternative} if test == "lr" else {"support": support}
+                out[i, j, k] = detection_probability(channel, z0, a, int(n), level, test, mu=mu, **extra)
     return DetectionCurves(windows, tests_, attacks_, out, level, support)

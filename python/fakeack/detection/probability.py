@@ -29,6 +29,7 @@ from .count import (
 )
 from .interval_power import _careful, _interval_probability, interval_support_probability
 from .interval_test import cached_interval_test
+from .likelihood import DEFAULT_ALTERNATIVE, likelihood_ratio_test
 from .process import flag_process
 
 __all__ = [
@@ -87,6 +88,7 @@ def detection_probability(
     lam: float | None = None,
     authenticated: bool = False,
     support: bool = True,
+    lr_alternative: object = None,
 ) -> float:
     r"""Probability that the sensor's test raises an alarm in one window of ``n_steps`` steps.
 
@@ -130,8 +132,11 @@ def detection_probability(
         Window length in steps.
     alpha : float
         False-alarm level of the test, in (0, 1).
-    test : {"count", "interval", "support"}
-        The sensor's test. ``"support"`` is the support check: an alarm at any gap between
+    test : {"count", "interval", "support", "lr"}
+        The sensor's test. ``"lr"`` is the likelihood-ratio test of the window against
+        ``lr_alternative`` (:func:`fakeack.likelihood_ratio_test`): exact on any channel and under
+        any attack, up to the grid of its statistic's law; the support check is part of it.
+        ``"support"`` is the support check: an alarm at any gap between
         flag-ACKs reaching the sensor shorter than the shortest gap possible without attack
         (:attr:`fakeack.FlagProcess.min_gap`, z0 + 1 when high-power packets always arrive), the
         gap that straddles the window's start included; its false-alarm rate is 0, and it is
@@ -164,7 +169,11 @@ def detection_probability(
         :math:`p_s + (1 - p_s)\,P_h(X^2 > c)`, with the short-gap probability :math:`p_s` exact
         and X²'s law given no short gap from the flag process conditioned on it (the Doob
         transform of the chain without the short-gap deliveries; ``fakeack.detection.gap_bins``),
-        normal as the test's own. ``support=False`` gives the test alone.
+        normal as the test's own. ``support=False`` gives the test alone (not for ``"lr"``,
+        whose statistic holds the support check).
+    lr_alternative : RandomBlocking, FlagInjection or array_like, optional
+        The attack the ``"lr"`` test is tuned to (default ``RandomBlocking(0.2)``); only with
+        ``test="lr"``.
 
     Returns
     -------
@@ -178,6 +187,14 @@ def detection_probability(
     """
     if not isinstance(support, bool):
         raise TypeError(f"support must be True or False, got {support!r}")
+    if test == "lr":
+        return _lr_probability(
+            channel, z0, attack, n_steps, alpha, alternative, mu, lr_alternative,
+            beta_bar=beta_bar, true_channel=true_channel, lam_range=lam_range, lam=lam,
+            authenticated=authenticated, support=support,
+        )  # fmt: skip
+    if lr_alternative is not None:
+        raise ValueError(f"lr_alternative: only with test='lr', got test={test!r}")
     args = (channel, z0, attack, n_steps, alpha, test, alternative, mu)
     kw: dict[str, Any] = {
         "beta_bar": beta_bar,
@@ -191,6 +208,41 @@ def detection_probability(
     if test == "count":
         return _count_with_support(args, kw)
     return _interval_with_support(args, kw)
+
+
+def _lr_probability(
+    channel: ChannelLike | None,
+    z0: int | None,
+    attack: object,
+    n_steps: int | None,
+    alpha: float | None,
+    alternative: str,
+    mu: float,
+    lr_alternative: object,
+    **kw: Any,
+) -> float:
+    """:func:`detection_probability` of the likelihood-ratio test."""
+    ch, _ = channel_argument(channel, kw["lam"], "detection_probability")
+    for name in ("beta_bar", "lam_range"):
+        if kw[name] is not None:
+            raise ValueError(f"{name}: not computed for the likelihood-ratio test")
+    if alternative != "two-sided":
+        raise ValueError(
+            "alternative: the likelihood-ratio test alarms on large values of its statistic by "
+            f"construction, got {alternative!r}; lr_alternative names the attack it is tuned to"
+        )
+    if not kw["support"]:
+        raise ValueError("support: the likelihood-ratio test's statistic holds the support check")
+    n = as_int("n_steps", required("detection_probability", "n_steps", n_steps), minimum=1)
+    level = as_probability("alpha", required("detection_probability", "alpha", alpha))
+    design = OnlineDesign(as_int("z0", required("detection_probability", "z0", z0), minimum=1), mu)
+    alt = DEFAULT_ALTERNATIVE if lr_alternative is None else lr_alternative
+    test = likelihood_ratio_test(ch, design.z0, n, level, design.mu, alternative=alt)
+    truth = ch if kw["true_channel"] is None else as_channel(kw["true_channel"], "true_channel")
+    played = attack
+    if kw["authenticated"] and attack is not None:
+        played = discard_forgeries(attack, channel=truth, design=design)
+    return test.detection_probability(played, None if kw["true_channel"] is None else truth)
 
 
 def _interval_with_support(args: tuple[Any, ...], kw: dict[str, Any]) -> float:

@@ -19,7 +19,12 @@ __all__ = [
     "plot_detection_curves",
 ]
 
-_TITLES = {"count": "count test", "interval": "interval test", "support": "support check alone"}
+_TITLES = {
+    "count": "count test",
+    "interval": "interval test",
+    "support": "support check alone",
+    "lr": "likelihood-ratio test",
+}
 
 
 def plot_detection_curves(
