@@ -52,6 +52,8 @@ from .detection import (
     IntervalDetection,
     IntervalLaw,
     IntervalTest,
+    LikelihoodRatioLaw,
+    LikelihoodRatioTest,
     cusum_run_length,
     cusum_threshold,
     delivered_flag_rate,
@@ -67,6 +69,8 @@ from .detection import (
     flag_process,
     flag_rates,
     interval_test,
+    likelihood_ratio_law,
+    likelihood_ratio_test,
 )
 from .engine import Scenario, StabilityRegion, stability_region
 from .game import (
@@ -158,6 +162,10 @@ __all__ = [
     "flag_count_moments",
     "flag_interval_law",
     "interval_test",
+    "LikelihoodRatioLaw",
+    "LikelihoodRatioTest",
+    "likelihood_ratio_law",
+    "likelihood_ratio_test",
     "FlagProcess",
     "flag_process",
     "study_grid",
