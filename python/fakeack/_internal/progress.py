@@ -14,8 +14,11 @@ if TYPE_CHECKING:
 class Progress:
     """A tqdm bar that appears only if a run lasts longer than a second."""
 
-    def __init__(self, total: int, enabled: bool | None) -> None:
+    def __init__(
+        self, total: int, enabled: bool | None, desc: str = "fakeack simulate", unit: str = "run"
+    ) -> None:
         self.total, self.start = total, time.monotonic()
+        self.desc, self.unit = desc, unit
         self.bar: Bar[NoReturn] | None = None  # a bar over no iterable
         self.enabled = sys.stderr.isatty() if enabled is None else bool(enabled)
 
@@ -31,7 +34,7 @@ class Progress:
             except ImportError:  # the bar is optional (pip install fakeack[progress])
                 self.enabled = False
                 return
-            bar = tqdm(total=self.total, unit="run", desc="fakeack simulate")
+            bar = tqdm(total=self.total, unit=self.unit, desc=self.desc)
             self.bar = bar
         bar.update(done - bar.n)
 

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._internal.progress import Progress
 from .._internal.types import FloatArray, RatioLike
 from .._internal.validate import as_int, as_real
 from ..attacks.automata import MimicryAttack
@@ -98,6 +99,7 @@ def delay_frontier(
     alternative: object = None,
     window: int = 1000,
     grid: int = 5,
+    progress: bool | None = None,
 ) -> DelayFrontier:
     r"""J against the mean detection delay for the attacks of one family, for the flag-ACK CUSUM
     and for the windowed tests at the same mean time to a false alarm.
@@ -132,6 +134,9 @@ def delay_frontier(
         The count test's window (default 1000 steps); ``window < arl0``.
     grid : int, optional
         Budgets of the random and careful families (default 5).
+    progress : bool, optional
+        A progress bar over the attacks (default: when run interactively and longer than a
+        second; needs tqdm).
 
     Returns
     -------
@@ -153,7 +158,9 @@ def delay_frontier(
     interval = n / m >= MIN_EXPECTED_FLAGS  # else the interval test's normal law does not hold
     attacks = _family(family, lam, design, points)
     j, delay, err, d, di = (np.empty(len(attacks)) for _ in range(5))
+    bar = Progress(len(attacks), progress, desc="fakeack delay_frontier", unit="attack")
     for k, attack in enumerate(attacks):
+        bar(k)
         j[k] = j_attack(system, lam, z0, attack=attack, mu=mu)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", UserWarning)  # the accuracy is reported beside it
@@ -161,6 +168,8 @@ def delay_frontier(
         delay[k], err[k] = run.mean, run.error
         d[k] = detection_probability(lam, z0, attack, n, alpha, "count", mu=mu)
         di[k] = detection_probability(lam, z0, attack, n, alpha, "interval", mu=mu) if interval else math.nan
+    bar(len(attacks))
+    bar.close()
     with np.errstate(divide="ignore"):
         window_delay, interval_delay = n / 2 + n / d, n / 2 + n / di
     return DelayFrontier(
