@@ -19,33 +19,26 @@ the cost of every :math:`\tau \ge T` at t = T (:func:`worst_attack`).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
-from typing import Any, cast
 
 import numpy as np
-import numpy.typing as npt
-import scipy.linalg as sla
-import scipy.sparse as sp
-from scipy.optimize import linprog
 
-from .._fakeack import ConvergenceError
+from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability
 from ..attacks.automata import AttackerAutomaton
 from ..model.channels import Channel, ChannelLike, as_channel
 from ..model.schedules import OnlineDesign
 from ..model.system import LinearSystem, compiled
-from .power import FIRST_TAU, LP_TOL, MASS_TOL, MAX_AUTO_TAU, MAX_TAU, PROB_TOL, TAIL_RTOL
-from .state_policy import StatePolicy, Steps, protocol_steps
+from ._attack_lp import attack_free_gaps, solve
+from .power import FIRST_TAU, MAX_AUTO_TAU, MAX_TAU, TAIL_RTOL
+from .state_policy import StatePolicy, automaton_cost, protocol_steps
 
 __all__ = ["WorstAttack", "worst_attack", "INFORMATION", "STEALTH"]
 
-#: Rows of the LP's solution below this share of its value are taken as unvisited.
-SHARE_TOL = 1e-14
 #: The attackers' information :func:`worst_attack` knows.
 INFORMATION = ("eavesdrop",)
 #: The stealth constraints :func:`worst_attack` knows (None: no constraint).
-STEALTH: tuple[str | None, ...] = (None,)
+STEALTH: tuple[str | None, ...] = (None, "support", "gap-law")
 
 
 @dataclass(frozen=True)
@@ -75,6 +68,9 @@ class WorstAttack:
     automaton: AttackerAutomaton | None
     """An attacker that sees only the genuine flag-ACKs and acts as ``policy`` (same J), when one
     exists: mu = 1, no forging and blocking independent of the channel state; else None."""
+    received_gaps: FloatArray
+    """The law of the gaps between the flag-ACKs the sensor receives under ``policy``: entry i is
+    gap i + 1, the last entry every gap >= G (G = 1 without a stealth constraint: ``[1.0]``)."""
 
 
 def worst_attack(
@@ -184,14 +180,12 @@ def worst_attack(
             f"channel: its largest loss probability {g:.6g} times rho(A)^2 = {system.spectral_radius**2:.6g} "
             "is at least 1: an attacker who keeps the power low can make J infinite or unbounded"
         )
-    steps = protocol_steps(ch, design)
     if tau_max is not None:
-        return _solve(
-            system, ch, design, steps, b, phi, g, as_int("tau_max", tau_max, minimum=1, maximum=MAX_TAU)
-        )
+        T = as_int("tau_max", tau_max, minimum=1, maximum=MAX_TAU)
+        return _solve(system, ch, design, (b, phi), g, T, stealth)
     T = FIRST_TAU
     while True:
-        res = _solve(system, ch, design, steps, b, phi, g, T)
+        res = _solve(system, ch, design, (b, phi), g, T, stealth)
         if res.tail_bound <= TAIL_RTOL * res.j:
             return res
         if 2 * T > MAX_AUTO_TAU:
@@ -202,162 +196,29 @@ def worst_attack(
         T *= 2
 
 
-def _tail_cost(system: LinearSystem, g: float, scale: float, T: int) -> float:
-    r""":math:`s^T\,g\,\mathrm{Tr}\,W` of :func:`worst_attack` (the tail's upper cost, scaled by
-    :math:`s^T`): :math:`s^T(h(X) - X) = (\sqrt s A)^T (h(\bar P) - \bar P) (\sqrt s A')^T`."""
-    A, Q = system.A, system.Q
-    D = A @ system.pbar @ A.T + Q - system.pbar
-    if np.min(np.linalg.eigvalsh((D + D.T) / 2)) < -1e-12 * max(1.0, float(np.abs(D).max())):
-        raise ValueError("system: h(P̄) - P̄ is not positive semidefinite, the traces do not grow")
-    M = np.linalg.matrix_power(math.sqrt(scale) * A, T)
-    E = M @ D @ M.T
-    W = sla.solve_discrete_lyapunov(math.sqrt(g) * A, E)
-    return float(g * np.trace(W))
-
-
-def _scale(g: float, rho: float) -> float:
-    r"""The column scale s: masses fall like :math:`g^t` and costs grow like :math:`\rho^{2t}`, so
-    :math:`s = \sqrt{g/\rho^2}` (:math:`\sqrt g` when :math:`\rho \le 1`) leaves both scaled
-    masses and scaled costs falling like :math:`(g\rho^2)^{t/2}`: the solver's tolerances then
-    resolve the deep rows as well as the masses allow (with s = g the costs of the deep rows fall
-    below HiGHS's dual tolerance long before the masses do)."""
-    if g == 0.0:
-        return 1.0  # no loss at all: tau stays 0, any scale does
-    return math.sqrt(g / rho**2) if rho > 1.0 else math.sqrt(g)
-
-
 def _solve(
     system: LinearSystem,
     ch: Channel,
     design: OnlineDesign,
-    steps: Steps,
-    beta: float,
-    phi: float,
+    budgets: tuple[float, float],
     g: float,
     T: int,
+    stealth: str | None,
 ) -> WorstAttack:
-    gs = _scale(g, system.spectral_radius)
-    K, S = steps.n_states, steps.slots
-    E = K * S
-    n_t = T + 1
-    flag_e = np.arange(K) * S + S - 1
-    quiet_e = (np.arange(K)[:, None] * S + np.arange(S - 1)[None, :]).ravel()
-    ny = n_t * E * 2
-    iy = np.arange(ny).reshape(n_t, E, 2)
-    isig = ny + np.arange(n_t * K).reshape(n_t, K)
-    ib = ny + n_t * K + np.arange(n_t)
-    if_ = ny + n_t * K + n_t + np.arange(n_t)
-    nvar = ny + n_t * K + 2 * n_t
-    rows: list[npt.NDArray[Any]] = []
-    cols: list[npt.NDArray[Any]] = []
-    vals: list[npt.NDArray[Any]] = []
-
-    def put(r: object, c: object, v: object) -> None:
-        r_, c_, v_ = np.broadcast_arrays(np.asarray(r), np.asarray(c), np.asarray(v, dtype=np.float64))
-        rows.append(r_.ravel())
-        cols.append(c_.ravel())
-        vals.append(v_.ravel())
-
-    # Balance of (t, e2), t = 1..T: the loss flow in from t - 1 (and from T itself at t = T).
-    L = np.moveaxis(steps.loss, 0, 2)  # (e, e2, a)
-    brow = (np.arange(1, n_t)[:, None] - 1) * E + np.arange(E)[None, :]  # (T, E)
-    put(brow[:, :, None], iy[1:], 1.0)
-    e_, e2_, a_ = np.nonzero(L)
-    w = L[e_, e2_, a_]
-    put(brow[:, e2_], iy[:-1, e_, a_], -w[None, :] / gs)
-    put(brow[-1, e2_], iy[T, e_, a_], -w)
-    r0 = T * E
-    # Cumulative masses per channel state: sigma(t, c) = sum y(t, c, .) + g sigma(t+1, c).
-    srow = r0 + np.arange(n_t * K).reshape(n_t, K)
-    put(srow, isig, 1.0)
-    put(srow[:, :, None, None], iy.reshape(n_t, K, S, 2), -1.0)
-    put(srow[:-1], isig[1:], -gs)
-    r0 += n_t * K
-    put(r0 + np.arange(K), isig[0], 1.0)
-    r0 += K
-    # Cumulative budgets: blocked - beta * sent over flags, forged - phi * quiet over quiet steps.
-    put(r0 + np.arange(n_t), ib, 1.0)
-    put((r0 + np.arange(n_t))[:, None], iy[:, flag_e, 0], -(1.0 - beta))
-    put((r0 + np.arange(n_t))[:, None], iy[:, flag_e, 1], beta)
-    put((r0 + np.arange(n_t - 1)), ib[1:], -gs)
-    r0 += n_t
-    put(r0 + np.arange(n_t), if_, 1.0)
-    put((r0 + np.arange(n_t))[:, None], iy[:, quiet_e, 1], -(1.0 - phi))
-    put((r0 + np.arange(n_t))[:, None], iy[:, quiet_e, 0], phi)
-    put((r0 + np.arange(n_t - 1)), if_[1:], -gs)
-    n_eq = r0 + n_t
-    ij = (np.concatenate(rows).astype(np.intp), np.concatenate(cols).astype(np.intp))
-    A_eq = sp.csr_array((np.concatenate(vals), ij), shape=(n_eq, nvar))
-    b_eq = np.zeros(n_eq)
-    b_eq[r0 - n_t - K : r0 - n_t] = np.asarray(ch.stationary)
-    with np.errstate(over="ignore"):
-        wt = np.asarray(system.weighted_traces(gs, T), dtype=np.float64)  # s^t tr_t
-    tail = _tail_cost(system, g, gs, T) if g > 0.0 else 0.0
-    cost = np.zeros(nvar)
-    cost[:ny] = np.repeat(wt, 2 * E)
-    cost[iy[T].ravel()] += tail
-    lower = np.zeros(nvar)
-    upper = np.full(nvar, np.inf)
-    lower[ny:] = -np.inf
-    upper[ib[0]] = 0.0
-    upper[if_[0]] = 0.0
-    # States the protocol never enters: at t = 0 only a quiet count 0; at t >= 1 no quiet count 0.
-    zero0 = np.ones(E, dtype=bool)
-    zero0[np.arange(K) * S] = False
-    upper[iy[0][zero0].ravel()] = 0.0
-    upper[iy[1:, np.arange(K) * S].ravel()] = 0.0
-    # Budgets at their ends are said through the bounds (HiGHS is then spared a face of the set).
-    if beta == 0.0:
-        upper[iy[:, flag_e, 0].ravel()] = 0.0
-    if phi == 0.0:
-        upper[iy[:, quiet_e, 1].ravel()] = 0.0
-    res = linprog(
-        -cost,
-        A_eq=cast(Any, A_eq),  # HiGHS takes sparse matrices; the stubs list only dense ones
-        b_eq=b_eq,
-        bounds=cast(Any, np.column_stack([lower, upper])),
-        method="highs",
-        options={
-            "primal_feasibility_tolerance": LP_TOL,
-            "dual_feasibility_tolerance": LP_TOL,
-            "presolve": False,
-        },
-    )
-    if res.status != 0:
-        raise ConvergenceError(f"the worst-attack LP (tau_max = {T}) was not solved: {res.message}")
-    assert res.x is not None and res.fun is not None  # status 0: solved
-    y = np.clip(res.x[:ny].reshape(n_t, E, 2), 0.0, None)
-    # Rows whose share of the objective is below the solver's resolution are left to chance by
-    # HiGHS; they count as unvisited (their choice moves J by less than 1e-13 relative).
-    share = y.sum(axis=2) * np.append(wt[:-1], wt[-1] + tail)[:, None]
-    policy = _policy(np.where((share > SHARE_TOL * -res.fun)[:, :, None], y, 0.0), K, S)
-    aut = policy.automaton(ch, design)
-    j = policy.cost(system, ch, design)
-    bound = float(tail * (g / gs) ** T) if g > 0.0 else 0.0  # g^T g Tr W: m_T <= g^T
-    flag_only = policy.flag_automaton(design)
+    steps = protocol_steps(ch, design)
+    gaps = attack_free_gaps(steps) if stealth == "gap-law" else None
+    min_gap = int(np.flatnonzero(attack_free_gaps(steps)[0])[0]) + 1 if stealth == "support" else 1
+    sol = solve(system, ch, steps, budgets, g, T, gaps, min_gap)
+    aut = sol.policy.automaton(ch, design)
+    j = automaton_cost(system, aut)
     return WorstAttack(
-        float(j), float(-res.fun), policy, aut.blocked_fraction, aut.forged_fraction, bound, T, flag_only
+        float(j),
+        sol.j_lp,
+        sol.policy,
+        aut.blocked_fraction,
+        aut.forged_fraction,
+        sol.tail_bound,
+        T,
+        sol.policy.flag_automaton(design),
+        aut.received_gaps,
     )
-
-
-def _policy(y: npt.NDArray[np.float64], K: int, S: int) -> StatePolicy:
-    """Block and forge probabilities from the scaled occupation measure; a flag row never visited
-    repeats the next visited one (so that runs read simply), and no forging where unvisited."""
-    mass = y.sum(axis=2)
-    p_high = np.divide(y[:, :, 1], mass, out=np.zeros_like(mass), where=mass > MASS_TOL)
-    p_high = p_high.reshape(-1, K, S)
-    seen = (mass > MASS_TOL).reshape(-1, K, S)
-    block = np.where(seen[:, :, S - 1], 1.0 - p_high[:, :, S - 1], 0.0)
-    for c in range(K):  # unvisited rows repeat the next visited one (the last one after it)
-        vis = np.flatnonzero(seen[:, c, S - 1])
-        if vis.size:
-            nxt = vis[np.minimum(np.searchsorted(vis, np.arange(block.shape[0])), vis.size - 1)]
-            block[:, c] = block[nxt, c]
-    forge = np.where(seen[:, :, : S - 1], p_high[:, :, : S - 1], 0.0)
-    block[block < PROB_TOL] = 0.0
-    block[block > 1.0 - PROB_TOL] = 1.0
-    forge[forge < PROB_TOL] = 0.0
-    forge[forge > 1.0 - PROB_TOL] = 1.0
-    if K > 1 and np.all(block == block[:, :1]):
-        block = block[:, :1]
-    return StatePolicy(block, forge if np.any(forge > 0.0) else None)
