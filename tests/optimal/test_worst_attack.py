@@ -171,3 +171,55 @@ def test_errors(bad):
         worst_attack(S, 0.3, PAPER, 0.5)  # loss 0.7 at low power, 0.7 * 1.44 >= 1
     with pytest.raises(ValueError, match="^tau_max"):
         worst_attack(S, 0.5, PAPER, 0.5, tau_max=0)
+
+
+# --- stealth -----------------------------------------------------------------------------------------
+
+
+def test_attack_free_gap_law_against_the_flag_process():
+    """The gap law the stealth constraint uses equals the Palm law of the engine's flag process,
+    pi D1 D0^(l-1) D1 1 / pi D1 1 (a different route: the engine's automaton of E)."""
+    from fakeack.model.channels import as_channel
+    from fakeack.optimal._attack_lp import attack_free_gaps
+    from fakeack.optimal.state_policy import protocol_steps
+
+    for channel, design in [(0.5, PAPER), (GE, fa.OnlineDesign(3, 0.6))]:
+        law, rate = attack_free_gaps(protocol_steps(as_channel(channel), design))
+        fp = fa.flag_process(channel, design)
+        D0, D1 = fp.D0.toarray(), fp.D1.toarray()
+        v = fp.stationary @ D1
+        assert rate == pytest.approx(v.sum(), rel=1e-12)
+        v = v / v.sum()
+        for gap in range(1, 30):
+            assert law[gap - 1] == pytest.approx(v @ D1.sum(axis=1), abs=1e-13)
+            v = v @ D0
+
+
+def test_gap_law_beats_mimicry():
+    """Mimicry meets the gap law (beta = 1, forging allowed), so the stealthy optimum is at least
+    its J; the optimal policy's received gaps have the attack-free law."""
+    from fakeack.model.channels import as_channel
+    from fakeack.optimal._attack_lp import attack_free_gaps
+    from fakeack.optimal.state_policy import protocol_steps
+
+    w = worst_attack(S, 0.5, PAPER, 1.0, forge_budget=1.0, stealth="gap-law", tau_max=60)
+    mimicry = fa.Scenario(S, 0.5, PAPER, fa.MimicryAttack()).cost()
+    assert w.j >= mimicry
+    assert w.j <= w.j_lp * (1 + LP_RTOL)
+    assert w.j >= (w.j_lp - w.tail_bound) * (1 - LP_RTOL)
+    law, _ = attack_free_gaps(protocol_steps(as_channel(0.5), PAPER))
+    np.testing.assert_allclose(w.received_gaps, law, atol=1e-9)
+    # Without forging nothing is received at the attack-free rate: the law cannot be met.
+    with pytest.raises(ValueError, match="^forge_budget"):
+        worst_attack(S, 0.5, PAPER, 1.0, stealth="gap-law", tau_max=30)
+
+
+def test_support_forbids_short_gaps():
+    """With stealth='support' no flag-ACK reaches the sensor sooner than the attack-free minimum
+    gap (z0 + 1 when high power always arrives); a plain random blocker would deliver gaps of z0."""
+    w = worst_attack(S, 0.5, PAPER, 0.5, forge_budget=0.2, stealth="support", tau_max=80)
+    assert w.received_gaps[:2].sum() == pytest.approx(0.0, abs=1e-12)
+    assert w.j <= w.j_lp * (1 + LP_RTOL)
+    assert w.j >= (w.j_lp - w.tail_bound) * (1 - LP_RTOL)
+    plain = worst_attack(S, 0.5, PAPER, 0.5, tau_max=80)
+    assert w.j_lp <= plain.j_lp * (1 + LP_RTOL)  # a constraint can only lower the optimum

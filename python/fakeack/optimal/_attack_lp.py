@@ -241,6 +241,11 @@ def solve(
             "presolve": G > 1,
         },
     )
+    if res.status == 2 or "primal_status is Infeasible" in str(res.message):  # as presolve words it
+        raise ValueError(
+            "forge_budget: no attacker within the budgets meets the stealth constraint (the sensor must "
+            "receive flag-ACKs at the attack-free rate: raise forge_budget or beta)"
+        )
     if res.status != 0:
         raise ConvergenceError(f"the worst-attack LP (tau_max = {T}) was not solved: {res.message}")
     assert res.x is not None and res.fun is not None  # status 0: solved
@@ -281,7 +286,8 @@ def _recurrent_candidates(
             shifted[-1] |= via_loss[-1]
             shifted[0] |= via_arr
             moved = np.zeros_like(reach)
-            np.logical_or.at(moved, (slice(None), slice(None), nxt[a]), shifted)
+            for d in range(G):
+                moved[:, :, nxt[a, d]] |= shifted[:, :, d]
             new |= moved
         frontier = new & ~reach
         reach |= new

@@ -360,7 +360,7 @@ def _closed_class_law(K: sp.csr_array, warm: int) -> tuple[npt.NDArray[np.intp],
     for _ in range(warm):
         v = KT @ v
     root = int(np.argmax(v))
-    keep = np.sort(breadth_first_order(K, root, directed=True, return_predecessors=False))
+    keep = np.sort(breadth_first_order(K, root, directed=True, return_predecessors=False)).astype(np.intp)
     Kc = K[keep][:, keep]
     r = int(np.searchsorted(keep, root))
     m = keep.size
