@@ -52,6 +52,20 @@ ATTACKS = [
         0.5,
         {"tau_max": 200},
     ),
+    (
+        "worst attack, paper, stealth=gap-law, beta=1, forging 1, tau_max=200",
+        0.5,
+        fa.OnlineDesign(2),
+        1.0,
+        {"tau_max": 200, "forge_budget": 1.0, "stealth": "gap-law"},
+    ),
+    (
+        "worst attack, paper, stealth=support, beta=0.5, forging 0.2, tau_max=200",
+        0.5,
+        fa.OnlineDesign(2),
+        0.5,
+        {"tau_max": 200, "forge_budget": 0.2, "stealth": "support"},
+    ),
 ]
 
 

@@ -96,6 +96,12 @@ def worst_attack(
     chain, so the optimum is an LP over its occupation measure (module docstring), and its value
     bounds every attacker within the budgets, whatever it sees.
 
+    **Stealth.** With d in the state, the gap law is linear in the occupation measure: the
+    long-run rate of deliveries at d = l is :math:`p_l` times the rate of all deliveries, which
+    is the attack-free flag rate. A test on the marginal law of the gaps cannot see such an
+    attacker; a test on the correlation of consecutive gaps still may, since the optimum's
+    gaps need not be independent (mimicry's are: it runs a copy of the attack-free protocol).
+
     **Scaling.** The masses fall like :math:`g^t` (g the channel's largest loss probability)
     while the traces grow like :math:`\rho(A)^{2t}` (1e32 at t = 200 on the paper's example). The
     LP is solved in :math:`y(t,\cdot) = x(t,\cdot)/s^t`, :math:`s = \sqrt{g/\rho(A)^2}`, so
@@ -132,8 +138,15 @@ def worst_attack(
         What the attacker sees: ``"eavesdrop"``, the holding time and the detector's state.
     forge_budget : float, keyword-only, optional
         Largest long-run fraction of quiet steps with a forged flag-ACK, in [0, 1] (default 0).
-    stealth : None, keyword-only, optional
-        No constraint on what the sensor receives (the only choice).
+    stealth : {None, "support", "gap-law"}, keyword-only, optional
+        What the flag-ACKs the sensor receives must look like. None: anything. ``"support"``:
+        no gap between two received flag-ACKs shorter than the shortest attack-free gap.
+        ``"gap-law"``: the gaps' marginal law is the attack-free one (each gap length up to
+        the length where the attack-free tail falls below 1e-8, the longer ones together) and
+        they come at the attack-free rate. Both put d, the steps since the last flag-ACK
+        received (capped at the constraint's length), in the LP's state, and the optimum reads
+        it; a truncated law is a relaxation, so ``j_lp`` still bounds every attacker whose
+        received gaps have exactly the attack-free law.
     tau_max : int, keyword-only, optional
         The truncation T (1 to 4096); None: 64, doubled until ``tail_bound`` is at most 1e-12
         of ``j`` (ValueError past 1024).
@@ -145,10 +158,11 @@ def worst_attack(
     Raises
     ------
     TypeError, ValueError
-        Naming ``beta`` or ``forge_budget`` outside [0, 1], ``information`` or ``stealth`` not
-        known, ``design`` not an OnlineDesign, ``tau_max``; naming ``channel`` when its largest
-        loss probability g has :math:`g\rho(A)^2 \ge 1` (an attacker can then make J infinite,
-        or nearly so, and the tail bound is infinite).
+        Naming ``beta`` or ``forge_budget`` outside [0, 1] (``forge_budget`` also when no
+        attacker within the budgets meets the stealth constraint), ``information`` or
+        ``stealth`` not known, ``design`` not an OnlineDesign, ``tau_max``; naming ``channel``
+        when its largest loss probability g has :math:`g\rho(A)^2 \ge 1` (an attacker can then
+        make J infinite, or nearly so, and the tail bound is infinite).
     ConvergenceError
         If HiGHS does not solve the LP.
 
