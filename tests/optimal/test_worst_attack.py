@@ -223,3 +223,35 @@ def test_support_forbids_short_gaps():
     assert w.j >= (w.j_lp - w.tail_bound) * (1 - LP_RTOL)
     plain = worst_attack(S, 0.5, PAPER, 0.5, tau_max=80)
     assert w.j_lp <= plain.j_lp * (1 + LP_RTOL)  # a constraint can only lower the optimum
+
+
+@pytest.mark.parametrize("min_gap", [1, 3, 5])
+@pytest.mark.parametrize("channel, design", [(0.5, PAPER), (GE, fa.OnlineDesign(3, 0.6))])
+def test_gap_axis_against_flag_injection(channel, design, min_gap):
+    """A policy that reads the received gap: forging with probability gamma once min_gap steps
+    have passed since the last flag-ACK received, and blocking with probability b, is the built-in
+    FlagInjection(gamma, RandomBlocking(b), min_gap)."""
+    gamma, b = 0.2, 0.3
+    forge = np.zeros((1, 1, 1, min_gap))
+    forge[..., -1] = gamma
+    pol = StatePolicy(np.full((1, 1, min_gap), b), forge)
+    attack = fa.FlagInjection(gamma, fa.RandomBlocking(b), min_gap=min_gap)
+    want = fa.Scenario(S, channel, design, attack).cost()
+    assert pol.cost(S, channel, design) == pytest.approx(want, rel=1e-10)
+    aut = pol.automaton(channel, design)
+    assert aut.blocked_fraction == pytest.approx(b, abs=1e-12)
+    if min_gap > 1:  # no forged flag-ACK before min_gap, no genuine one before z0
+        short = aut.received_gaps[: min(min_gap, design.z0) - 1].sum()
+        assert short == pytest.approx(0.0, abs=1e-14)
+
+
+def test_truncation_errs_on_the_safe_side():
+    """A short truncation's j_lp still bounds the optimum found with a long one, and its own
+    policy's J lies within its tail bound (here far from negligible)."""
+    long = worst_attack(S, 0.5, PAPER, 0.5, tau_max=200)
+    for T in (4, 8, 16):
+        short = worst_attack(S, 0.5, PAPER, 0.5, tau_max=T)
+        assert short.tail_bound > 1e-6
+        assert short.j_lp >= long.j * (1 - LP_RTOL)
+        assert short.j <= long.j * (1 + LP_RTOL)
+        assert short.j >= (short.j_lp - short.tail_bound) * (1 - LP_RTOL)
