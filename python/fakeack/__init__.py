@@ -114,8 +114,11 @@ from .optimal import (
     HoldingTimePolicy,
     JammingResult,
     PowerPolicyResult,
+    StatePolicy,
+    WorstAttack,
     optimal_jamming,
     optimal_power_policy,
+    worst_attack,
 )
 from .plots import (
     plot_delay_frontier,
@@ -180,6 +183,9 @@ __all__ = [
     "PowerPolicyResult",
     "optimal_jamming",
     "optimal_power_policy",
+    "StatePolicy",
+    "WorstAttack",
+    "worst_attack",
     "DelayFrontier",
     "delay_frontier",
     "GameSimulation",

@@ -49,6 +49,8 @@ DOCTEST_MODULES = [
     "optimal.policies",
     "optimal.power",
     "optimal.jamming",
+    "optimal.attack",
+    "optimal.state_policy",
 ]
 
 

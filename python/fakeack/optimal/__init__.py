@@ -5,11 +5,15 @@ energy budget, knowing the holding time from per-packet ACKs and possibly the ch
 average-cost constrained MDP over occupation measures; :class:`HoldingTimePolicy` is the kind of
 policy it returns, evaluated exactly as an automaton of the engine. :func:`optimal_jamming` gives
 the jammer's best schedule against the data channel, over a finite horizon or in the long run.
+:func:`worst_attack` gives the attacker's most damaging use of the flag-ACKs within a blocking
+budget, as a :class:`StatePolicy` that reads the holding time and the detector's state.
 """
 
+from .attack import WorstAttack, worst_attack
 from .jamming import JammingResult, optimal_jamming
 from .policies import HoldingTimePolicy, PolicyAutomaton
 from .power import PowerPolicyResult, optimal_power_policy
+from .state_policy import StatePolicy
 
 __all__ = [
     "HoldingTimePolicy",
@@ -18,4 +22,7 @@ __all__ = [
     "optimal_power_policy",
     "JammingResult",
     "optimal_jamming",
+    "StatePolicy",
+    "WorstAttack",
+    "worst_attack",
 ]
