@@ -225,7 +225,7 @@ def likelihood_ratio_test(
 
     The statistic :math:`\Lambda_n` (module docstring) has an exact attack-free law
     (:func:`likelihood_ratio_law`); the critical value c solves :math:`P(\Lambda_n \ge c)` =
-    ``alpha`` on it, read through hat kernels (:meth:`fakeack.detection.LikelihoodRatioLaw.tail`),
+    ``alpha`` on it, read through hat kernels (:meth:`fakeack.LikelihoodRatioLaw.tail`),
     which act as a randomisation at the scale of the grid; ``error`` is how far c moves on a grid
     twice as coarse. By Neyman and Pearson, no test of the same level detects ``alternative``
     more often. An alternative with the attack-free gap law (every finite increment 0) is refused.

@@ -29,7 +29,7 @@ alternative cannot, :math:`-\infty` (kept apart, still watched for a later :math
 The band of the grid holds :math:`m n \pm 8\sqrt{n\sigma^2}` (never more than the n steps can
 reach), with :math:`\sigma^2` from the Poisson equation of the (a, e) chain; the mass that leaves
 it is reported (``above``, ``below``; above the band it counts as a large value). The law is read
-back through hat kernels (:meth:`LikelihoodRatioLaw.tail`), the inverse of the split rounding,
+back through hat kernels (:meth:`fakeack.LikelihoodRatioLaw.tail`), the inverse of the split rounding,
 which removes the first-order bias of counting whole grid cells; what remains shrinks between
 first and second order in the spacing (the law of :math:`\Lambda_n` is itself a lattice-like
 discrete law), so the error is stated by recomputing on a grid twice as coarse.

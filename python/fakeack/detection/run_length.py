@@ -41,7 +41,7 @@ __all__ = [
 ]
 
 #: Largest chain (states of (e, y, W)) built unless told otherwise.
-MAX_CHAIN_STATES = 4_000_000
+MAX_CHAIN_STATES = 1_000_000
 _STARTS = ("renewal", "stationary")
 _ROUNDINGS = ("down", "up", "split")
 
@@ -290,7 +290,7 @@ def cusum_run_length(
     authenticated : bool, optional
         Whether the sensor rejects forged flag-ACKs (only the attack's blocking part acts).
     max_states : int, optional
-        Largest chain built (default 4e6).
+        Largest chain built (default 10^6; the sparse LU of the largest takes a few GB).
 
     Returns
     -------

@@ -107,7 +107,7 @@ def worst_attack(
     LP is solved in :math:`y(t,\cdot) = x(t,\cdot)/s^t`, :math:`s = \sqrt{g/\rho(A)^2}`, so
     that scaled masses and scaled costs both fall like :math:`(g\rho(A)^2)^{t/2}`, with
     cumulative variables :math:`\sigma_t = (\dots)_t + s\,\sigma_{t+1}` for the sums over all t
-    (normalisation, budgets), as in :func:`fakeack.optimal.optimal_power_policy`.
+    (normalisation, budgets), as in :func:`fakeack.optimal_power_policy`.
 
     **The tail bound, on the safe side.** For a maximisation the truncation must not lower the
     LP's value: the aggregated state t = T is costed at an upper bound of what every

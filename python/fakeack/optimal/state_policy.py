@@ -204,7 +204,7 @@ class StatePolicy:
 
         From (t, e, d) the sensor's next power is high with the policy's probability (then a
         flag-ACK is received and d restarts at 1, else d grows, capped at G); the next step is
-        :func:`protocol_steps`, and t moves to 0 on an arrival (``K1``) or to
+        ``protocol_steps``, and t moves to 0 on an arrival (``K1``) or to
         :math:`\min(t + 1, \tau_{\max})` on a loss (``K0``).
 
         Parameters
