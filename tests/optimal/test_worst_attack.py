@@ -209,9 +209,15 @@ def test_gap_law_beats_mimicry():
     assert w.j >= (w.j_lp - w.tail_bound) * (1 - LP_RTOL)
     law, _ = attack_free_gaps(protocol_steps(as_channel(0.5), PAPER))
     np.testing.assert_allclose(w.received_gaps, law, atol=1e-9)
-    # Without forging nothing is received at the attack-free rate: the law cannot be met.
-    with pytest.raises(ValueError, match="^forge_budget"):
-        worst_attack(S, 0.5, PAPER, 1.0, stealth="gap-law", tau_max=30)
+    # Without forging the gap law leaves at most the attack-free policy (J_on): HiGHS either finds
+    # that single point or, on its tolerance, reports the program infeasible (ValueError naming
+    # forge_budget); both occur across SciPy versions.
+    try:
+        w0 = worst_attack(S, 0.5, PAPER, 1.0, stealth="gap-law", tau_max=30)
+    except ValueError as err:
+        assert str(err).startswith("forge_budget")
+    else:
+        assert w0.j == pytest.approx(fa.j_online(S, 0.5, 2), rel=1e-9)
 
 
 def test_support_forbids_short_gaps():

@@ -243,8 +243,9 @@ def solve(
     )
     if res.status == 2 or "primal_status is Infeasible" in str(res.message):  # as presolve words it
         raise ValueError(
-            "forge_budget: no attacker within the budgets meets the stealth constraint (the sensor must "
-            "receive flag-ACKs at the attack-free rate: raise forge_budget or beta)"
+            "forge_budget: the stealth program is infeasible to the solver's tolerance: within these budgets "
+            "the sensor must receive flag-ACKs at the attack-free rate, which leaves at most the attack-free "
+            "policy (J_on); raise forge_budget or beta"
         )
     if res.status != 0:
         raise ConvergenceError(f"the worst-attack LP (tau_max = {T}) was not solved: {res.message}")
