@@ -258,4 +258,5 @@ def simulate_game(
     automaton: tuple[list[list[tuple[float, bool, int]]], list[list[tuple[float, bool, int]]], int]
     | None = None,
     cusum: tuple[list[float], list[float], float] | None = None,
+    lr: tuple[list[float], list[float], list[float]] | None = None,
 ) -> dict[str, Any]: ...

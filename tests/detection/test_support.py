@@ -232,7 +232,7 @@ def test_the_gap_across_the_windows_start_counts():
 
 
 def test_detection_rates_arguments_for_the_check():
-    with pytest.raises(ValueError, match="support: test='support' is the support check itself"):
+    with pytest.raises(ValueError, match="support: test='support' includes the support check"):
         fa.detection_rates(0.5, 2, fa.FlagInjection(0.1), 100, 10, test="support", support=False)
     with pytest.raises(ValueError, match="alternative: the support test is two-sided"):
         fa.detection_rates(0.5, 2, fa.FlagInjection(0.1), 100, 10, test="support", alternative="less")

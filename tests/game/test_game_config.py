@@ -17,6 +17,12 @@ def test_the_careful_forger_and_mimicry_are_spelled():
     assert {"careful:0.2", "mimicry"} <= set(DEFAULT_ATTACKS)
 
 
+def test_the_lr_test_is_spelled():
+    assert parse_game({"game": {"tests": ["lr", "count"]}}).tests == ("lr", "count")
+    with pytest.raises(ConfigError, match="tests"):
+        parse_game({"game": {"tests": ["cusum"]}})
+
+
 def test_support_grid_and_prior():
     assert (GameConfig().support, GameConfig().grid, GameConfig().attack_prior) == (True, 41, 1.0)
     game = parse_game({"game": {"support": False, "grid": 5, "attack_prior": 0.25}})

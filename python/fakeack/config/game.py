@@ -6,7 +6,7 @@ Every key is optional; the defaults are the paper example's game of the README::
     n_steps = 1000                       # window length (steps)
     alphas = [0.01, 0.05]                # false-alarm levels
     fallbacks = [1, 2, 4]                # offline windows after a triggering alarm
-    tests = ["count", "interval"]
+    tests = ["count", "interval"]       # also "lr": the likelihood-ratio test against random:0.2
     rules = ["any", "harmful"]
     attacks = ["none", "1/5", "1/3", "random:0.2", "inject:0.05", "match:0.2"]
     max_detection = 0.02                 # the stealthy frontiers' detection bound
@@ -175,7 +175,7 @@ def parse_game(data: dict[str, Any]) -> GameConfig:
     readers = {
         "alphas": _alpha,
         "fallbacks": lambda k, v: read_int("game", k, v, 0),
-        "tests": _choice(("count", "interval")),
+        "tests": _choice(("count", "interval", "lr")),
         "rules": _choice(("any", "harmful")),
         "attacks": _text,
     }

@@ -206,6 +206,15 @@ class LikelihoodRatioTest:
         return law_of(process, self.increments, self.n_steps, RESOLUTION).tail(self.critical)
 
 
+def lr_tables(test: LikelihoodRatioTest) -> tuple[list[float], list[float], list[float]]:
+    """The closed-loop kernel's form of the statistic: the increments at a flag-ACK and at a
+    silent step and the opening, per gap y = 1..Y (the kernel continues the opening past Y by
+    the last silent increment per step, as :func:`opening` does)."""
+    inc = test.increments
+    start = opening(inc, np.arange(1, inc.length + 1))
+    return [float(v) for v in inc.flag], [float(v) for v in inc.quiet], [float(v) for v in start]
+
+
 def _critical(law: LikelihoodRatioLaw, alpha: float) -> tuple[float, float]:
     """The critical value at level alpha and the tail the law gives there."""
     c = law.quantile(alpha)

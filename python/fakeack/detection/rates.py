@@ -20,6 +20,7 @@ from ..montecarlo._automaton import SimAttack, as_sim_attack, kernel_attack
 from .count import alarm_bounds
 from .flags import delivered_flag_rate, estimate_beta, flag_rates
 from .interval_test import cached_interval_test
+from .likelihood import DEFAULT_ALTERNATIVE, likelihood_ratio_test, lr_tables
 from .probability import KernelTest, check_test
 
 __all__ = [
@@ -50,18 +51,27 @@ def simulate_windows(
     progress: bool | None = False,
     *,
     support: bool = True,
+    lr_alternative: object = None,
 ) -> tuple[FloatArray, FloatArray]:
     """Alarms (0/1) and delivered flag-ACKs of ``runs`` simulated windows of ``n`` steps, one per run,
     after ``burn_in`` untested steps, by the closed-loop kernel (the sensor never falls back).
     ``support``: the window alarms at the support check too (the gap across its start counts);
-    ``test="support"`` is the support check alone. Any attacker automaton plays move by move (a
+    ``test="support"`` is the support check alone; ``test="lr"`` the likelihood-ratio test against
+    ``lr_alternative``, its own support check included. Any attacker automaton plays move by move (a
     mimicry attacker without its own channel or design runs ``lam`` and ``design``)."""
     from .._internal.progress import Progress
     from .flags import any_system
 
+    lr = None
     if test == "support":
         args: KernelTest = ("count", -1, n + 1, [], [], 0.0, None, 0)  # a count test that never alarms
         support = True
+    elif test == "lr":
+        alt = DEFAULT_ALTERNATIVE if lr_alternative is None else lr_alternative
+        t_lr = likelihood_ratio_test(lam, design.z0, n, alpha, design.mu, alternative=alt)
+        args = ("lr", -1, 0, [], [], t_lr.critical, None, 0)
+        lr = lr_tables(t_lr)
+        support = False  # the statistic's +inf increments are its support check
     elif test == "count":
         lo, hi = alarm_bounds(lam, design, n, alpha, alternative)
         args = ("count", lo, hi, [], [], 0.0, None, 0)
@@ -98,6 +108,7 @@ def simulate_windows(
             bar,
             min_gap=paper_min_gap(design) if support else 0,
             automaton=automaton,
+            lr=lr,
         )
     finally:
         bar.close()
@@ -145,14 +156,17 @@ def detection_rates(
     alternative: str | None = None,
     burn_in: int | None = None,
     support: bool = True,
+    *,
+    lr_alternative: object = None,
 ) -> DetectionRates:
     """False-alarm and detection rates of the sensor's tests by Monte Carlo of the protocol.
 
     Simulates ``runs`` attack-free and ``runs`` attacked observation windows of ``n_steps`` steps
     (one window per run, after ``burn_in`` steps; the flag process does not depend on the plant)
     with the closed-loop kernel of :func:`fakeack.simulate_game`, and applies the test to
-    each: the count test of :func:`detect_attack` or the interval test of
-    :func:`fakeack.detect_intervals`, with their exact alarm regions. The default burn-in puts
+    each: the count test of :func:`detect_attack`, the interval test of
+    :func:`fakeack.detect_intervals` or the likelihood-ratio test of
+    :func:`fakeack.likelihood_ratio_test`, with their exact alarm regions. The default burn-in puts
     the window in the stationary regime that :func:`fakeack.detection_probability` describes;
     with ``burn_in=0`` every window starts from the paper's initial condition. Forged flag-ACKs
     (:class:`fakeack.FlagInjection`) count as delivered: the sensor cannot tell them from genuine
@@ -183,9 +197,11 @@ def detection_rates(
         Level of the test (default 0.01).
     seed : int, optional
         Seed of the attack-free windows (the attacked ones use seed + 1).
-    test : {"count", "interval", "support"}, optional
+    test : {"count", "interval", "lr", "support"}, optional
         The test (default the count test); ``"support"`` is the support check alone, as in
-        :func:`fakeack.detection_probability`.
+        :func:`fakeack.detection_probability`; ``"lr"`` the likelihood-ratio test against
+        ``lr_alternative``, whose +inf increments are its support check (``support`` must then
+        be left True: the check is part of the statistic).
     alternative : {"less", "greater", "two-sided"}, optional
         The count test's alternative (default "less", as :func:`detect_attack`); the interval test
         and the support check are two-sided (the default for them, and the only value they take).
@@ -198,6 +214,9 @@ def detection_rates(
         Whether a window also alarms at the support check: a flag-ACK reaching the sensor fewer
         than z0 + 1 steps (z0 + 2 at mu = 0) after the previous one, which may lie before the
         window (default True). It never alarms without attack, nor under blocking alone.
+    lr_alternative : RandomBlocking, FlagInjection or array_like, optional
+        The attack the likelihood-ratio test is tuned to (``test="lr"`` only; default
+        ``RandomBlocking(0.2)``).
 
     Returns
     -------
@@ -213,11 +232,13 @@ def detection_rates(
     runs = as_int("runs", runs, minimum=2, maximum=1 << 24)
     alpha = as_probability("alpha", alpha)
     seed = as_int("seed", seed, minimum=0, maximum=2**63)
-    if test == "support":
+    if test in ("support", "lr"):
         if not support:
-            raise ValueError("support: test='support' is the support check itself; it cannot be off")
+            raise ValueError(f"support: test={test!r} includes the support check; it cannot be off")
     else:
         test = check_test(test)
+    if lr_alternative is not None and test != "lr":
+        raise ValueError(f"lr_alternative: only with test='lr', got test={test!r}")
     if alternative is None:
         alternative = "less" if test == "count" else "two-sided"
     alternative = check_alternative(alternative)
@@ -233,7 +254,18 @@ def detection_rates(
     delivered = np.zeros(0)  # the attacked windows' counts, from the loop's last run
     for name, a, sd in (("clean", None, seed), ("attacked", att, seed + 1)):
         alarms, counts = simulate_windows(
-            lam, design, a, n, runs, sd, test, alpha, alternative, burn_in, support=support
+            lam,
+            design,
+            a,
+            n,
+            runs,
+            sd,
+            test,
+            alpha,
+            alternative,
+            burn_in,
+            support=support,
+            lr_alternative=lr_alternative,
         )
         p = float(np.mean(alarms))
         flagged[name], se[name] = p, math.sqrt(max(p * (1 - p), 0.0) / runs)

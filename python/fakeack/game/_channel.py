@@ -79,6 +79,9 @@ def channel_game(
         kernel = ("online", -1, 0, [], [], 0.0, None, 0)
     elif policy.test == "cusum":  # its statistic goes as the kernel's `cusum` argument
         kernel = ("cusum", -1, 0, [], [], 0.0, None, cast(int, policy.fallback))
+    elif policy.test == "lr":  # its tables go as the kernel's `lr` argument
+        critical = policy.lr_test(channel, design, n).critical
+        kernel = ("lr", -1, 0, [], [], critical, None, cast(int, policy.fallback))
     elif policy.test == "interval":
         raise ValueError(
             "policy: the interval test's law assumes independent gaps between flag-ACKs, which holds "

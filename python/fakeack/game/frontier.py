@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._internal.progress import Progress
 from .._internal.types import FloatArray
 from .._internal.validate import as_int, as_probability, as_real
 from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeries
@@ -14,6 +15,7 @@ from ..attacks.kinds import Attack, FlagInjection, PeriodicBlocking, RandomBlock
 from ..attacks.random import rate_matching_attack
 from ..attacks.rates import high_power_rate
 from ..detection.count import check_alternative
+from ..detection.likelihood import DEFAULT_ALTERNATIVE, likelihood_ratio_test
 from ..detection.probability import (
     check_test,
     detection_probability,
@@ -102,6 +104,8 @@ def stealthy_frontier(
     grid: int = 41,
     authenticated: bool = False,
     support: bool = True,
+    lr_alternative: object = None,
+    progress: bool | None = None,
 ) -> StealthyFrontier:
     r"""The attack of a family that maximises J subject to a detection probability per window of at
     most ``max_detection``.
@@ -136,8 +140,9 @@ def stealthy_frontier(
         Window length in steps.
     alpha : float
         The test's false-alarm level, in (0, 1).
-    test : {"count", "interval"}
-        The sensor's test.
+    test : {"count", "interval", "lr"}
+        The sensor's test; ``"lr"`` is the likelihood-ratio test against ``lr_alternative``
+        (:func:`fakeack.likelihood_ratio_test`), whose +inf increments are its support check.
     family : {"periodic", "random", "random+inject", "careful", "mimicry"}
         The attacks searched.
     max_detection : float
@@ -156,7 +161,15 @@ def stealthy_frontier(
         forger gains nothing from forging.
     support : bool, optional
         Whether the sensor runs the support check beside its test (default True), as
-        :func:`fakeack.detection_probability` combines them.
+        :func:`fakeack.detection_probability` combines them (the likelihood-ratio test always
+        has it).
+    lr_alternative : RandomBlocking, FlagInjection or array_like, optional
+        The attack the likelihood-ratio test is tuned to (``test="lr"`` only; default
+        ``RandomBlocking(0.2)``).
+    progress : bool, optional
+        A progress bar over the attacks for the likelihood-ratio test, whose law takes about a
+        second per attack at 1000 steps (default: when run interactively and longer than a
+        second).
 
     Returns
     -------
@@ -167,7 +180,9 @@ def stealthy_frontier(
     z0, mu = design
     n = as_int("n_steps", n_steps, minimum=1, maximum=10**9)
     alpha = as_probability("alpha", alpha)
-    test = check_test(test)
+    test = "lr" if test == "lr" else check_test(test)
+    if lr_alternative is not None and test != "lr":
+        raise ValueError(f"lr_alternative: only with test='lr', got test={test!r}")
     alternative = check_alternative(alternative) if test == "count" else "two-sided"
     if family not in FAMILIES:
         raise ValueError(f"family must be one of {FAMILIES}, got {family!r}")
@@ -185,10 +200,23 @@ def stealthy_frontier(
     # Mimicry delivers exactly the attack-free flag process, so every flag-timing test sees it
     # at its false-alarm rate.
     timed = [None if isinstance(a, MimicryAttack) else a for a in played]
-    d = np.array(
-        [detection_probability(lam, z0, a, n, alpha, test, alternative, mu, support=False) for a in timed]
-    )
-    if support:
+    if test == "lr":  # one test, its law under each attack; the support check is in the statistic
+        tuned = DEFAULT_ALTERNATIVE if lr_alternative is None else lr_alternative
+        lr = likelihood_ratio_test(lam, z0, n, alpha, mu, alternative=tuned)
+        bar = Progress(len(timed), progress, desc="fakeack stealthy_frontier", unit="attack")
+        try:
+            found = []
+            for a in timed:
+                found.append(lr.detection_probability(a))
+                bar(len(found))
+            d = np.array(found)
+        finally:
+            bar.close()
+    else:
+        d = np.array(
+            [detection_probability(lam, z0, a, n, alpha, test, alternative, mu, support=False) for a in timed]
+        )
+    if support and test != "lr":
         d = _with_support(lam, design, n, alpha, test, alternative, timed, d)
     j_on = j_attack(system, lam, z0, mu=mu, attack=PeriodicBlocking(0, 1))
     # Pareto frontier: by detection (ties: larger J first), keep each new maximum of J.

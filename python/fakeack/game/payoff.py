@@ -30,6 +30,7 @@ from ..detection.count import (
 from ..detection.cusum import CusumTest
 from ..detection.interval_power import AttackForm, interval_batch, interval_support_probability, sum_tails
 from ..detection.interval_test import IntervalTest, cached_interval_test
+from ..detection.likelihood import LikelihoodRatioTest
 from ..detection.probability import forges
 from ..detection.process import FlagProcess, flag_process
 from ..detection.run_length import cusum_run_length
@@ -119,8 +120,11 @@ class _Setting:
         check when the policy has it; the tails of every built-in attack in one vectorised call)."""
         if policy.special:
             return np.zeros(len(attacks))
-        harm = self.harm(policy)
         timing = [self._as_timed(a) for a in attacks]
+        if policy.test == "lr":  # its +inf increments are its support check
+            lr = self._lr_test(policy)
+            return np.array([lr.detection_probability(a) for a in timing])
+        harm = self.harm(policy)
         d = self._test_alone(policy, timing, harm)
         if not policy.support:
             return d
@@ -152,6 +156,10 @@ class _Setting:
                 return exact_alarm_probability(bounds, law, harm)
             return count_alarm_probability(bounds, self.n, self._moments(attack), harm)
         return self._process(attack).window_alarm_probability(self.n, 1, bounds, harm)
+
+    def _lr_test(self, policy: SensorPolicy) -> LikelihoodRatioTest:
+        """The policy's likelihood-ratio test (cached by :func:`likelihood_ratio_test` itself)."""
+        return policy.lr_test(self.lam, self.design, self.n)
 
     def _bounds(self, policy: SensorPolicy) -> tuple[int, int]:
         key = ("bounds", policy.alpha, policy.alternative)
@@ -292,7 +300,9 @@ def game_payoff(
     :math:`J = (T_{on} J_{att} + K n J_{off}) / (T_{on} + K n)`, the same renewal average with
     the CUSUM's cycle in place of the windows'.
 
-    The count test's d is exact or normal as in :func:`fakeack.detection_probability`, and
+    The likelihood-ratio test's d is :meth:`fakeack.LikelihoodRatioTest.detection_probability`
+    (its support check included). The count test's d is exact or normal as in
+    :func:`fakeack.detection_probability`, and
     exact with the support check against a forger; the interval test's combination with the
     support check is P(short gap) plus P(no short gap) times the test's alarm probability given
     none, as there. Mimicry of the game's own channel and detector delivers the attack-free

@@ -10,9 +10,14 @@ from dataclasses import dataclass
 from typing import Any, Protocol, TypeVar, cast
 
 import numpy as np
+import numpy.typing as npt
 
 from .._internal.validate import as_int, as_probability
 from ..detection.count import check_alternative
+from ..detection.cusum import CusumTest
+from ..detection.likelihood import DEFAULT_ALTERNATIVE, LikelihoodRatioTest, likelihood_ratio_test
+from ..model.channels import ChannelLike
+from ..model.schedules import OnlineDesign
 
 __all__ = [
     "CusumStatistic",
@@ -59,6 +64,14 @@ class SensorPolicy:
     ``SensorPolicy("offline")`` (always offline) and ``SensorPolicy("never")`` (online, never
     test).
 
+    ``SensorPolicy("lr", alpha, fallback, lr_alternative=a)``: the likelihood-ratio test of
+    :func:`fakeack.likelihood_ratio_test` against the attack ``a`` (default
+    ``RandomBlocking(0.2)``) on every online window, at level ``alpha``; by Neyman and Pearson
+    the most powerful window test against ``a`` itself. Every alarm triggers the fall-back
+    (``rule="any"``: the harmful rule's count and the statistic have no joint law here) and its
+    +inf increments are its support check (no ``support``). Back online after a fall-back the
+    statistic waits for the first flag-ACK, whose gap the offline stretch set.
+
     ``SensorPolicy("cusum", fallback=K, cusum=c)``: run online with the CUSUM statistic W of ``c``
     (a :class:`fakeack.CusumTest`) updated at every online step, W <- max(0, W + inc) with the
     increment of the step's outcome (a flag-ACK or silence) at the current gap; an alarm
@@ -69,10 +82,10 @@ class SensorPolicy:
 
     Parameters
     ----------
-    test : {"count", "interval", "cusum", "offline", "never"}
+    test : {"count", "interval", "lr", "cusum", "offline", "never"}
         The test, or a special policy.
     alpha : float
-        False-alarm level per window, in (0, 1) (the count and interval tests only).
+        False-alarm level per window, in (0, 1) (the window tests only).
     fallback : int
         Offline windows after a triggering alarm, >= 0 (tests and the CUSUM).
     rule : {"any", "harmful"}, optional
@@ -84,6 +97,9 @@ class SensorPolicy:
         default True). Its alarms follow ``rule`` as the test's do.
     cusum : CusumStatistic, optional
         The CUSUM's statistic (``test="cusum"`` only): its ``threshold`` and ``increments``.
+    lr_alternative : RandomBlocking, FlagInjection or array_like, optional
+        The attack the likelihood-ratio test is tuned to (``test="lr"`` only; default
+        ``RandomBlocking(0.2)``), as :func:`fakeack.likelihood_ratio_test` takes it.
 
     Raises
     ------
@@ -112,6 +128,8 @@ class SensorPolicy:
     """The support check (False for the special policies, which test nothing, and the CUSUM)."""
     cusum: CusumStatistic | None = None
     """The CUSUM's statistic (None for the other policies)."""
+    lr_alternative: object = None
+    """The attack the likelihood-ratio test is tuned to (None for the other policies)."""
 
     def __init__(
         self,
@@ -122,8 +140,12 @@ class SensorPolicy:
         alternative: str = "two-sided",
         support: bool | None = None,
         cusum: CusumStatistic | None = None,
+        lr_alternative: object = None,
     ) -> None:
         object.__setattr__(self, "cusum", None)
+        object.__setattr__(self, "lr_alternative", None)
+        if lr_alternative is not None and test != "lr":
+            raise ValueError(f"lr_alternative: only the test 'lr' takes one, not {test!r}")
         if test == "cusum":
             self._init_cusum(fallback, cusum, alpha, rule, alternative, support)
             return
@@ -139,12 +161,17 @@ class SensorPolicy:
             object.__setattr__(self, "alternative", "two-sided")
             object.__setattr__(self, "support", False)
             return
-        if test not in ("count", "interval"):
-            raise ValueError(f"test must be 'count', 'interval', 'cusum', 'offline' or 'never', got {test!r}")
+        if test not in ("count", "interval", "lr"):
+            raise ValueError(
+                f"test must be 'count', 'interval', 'lr', 'cusum', 'offline' or 'never', got {test!r}"
+            )
         if alpha is None or fallback is None:
             raise TypeError(f"test {test!r} needs alpha and fallback")
         if rule not in RULES:
             raise ValueError(f"rule must be one of {RULES}, got {rule!r}")
+        if test == "lr":
+            self._init_lr(alpha, fallback, rule, alternative, support, lr_alternative)
+            return
         alternative = check_alternative(alternative)
         if test == "interval" and alternative != "two-sided":
             raise ValueError("alternative: the interval test is two-sided by construction")
@@ -158,6 +185,34 @@ class SensorPolicy:
         if not isinstance(support, (bool, np.bool_)):
             raise TypeError(f"support must be True or False, got {support!r}")
         object.__setattr__(self, "support", bool(support))
+
+    def _init_lr(
+        self,
+        alpha: float,
+        fallback: int,
+        rule: str,
+        alternative: str,
+        support: bool | None,
+        lr_alternative: object,
+    ) -> None:
+        """The fields of a likelihood-ratio test policy, checked."""
+        if rule != "any":
+            raise ValueError(
+                f"rule: every alarm of the likelihood-ratio test triggers the fall-back ('any'), got {rule!r}"
+            )
+        if alternative != "two-sided":
+            raise ValueError("alternative: the likelihood-ratio test's alternative is lr_alternative")
+        if support:
+            raise ValueError("support: the likelihood-ratio statistic's +inf increments are its check")
+        # The statistic's own checks (and its TypeError for an alternative it cannot take).
+        alt = CusumTest(DEFAULT_ALTERNATIVE if lr_alternative is None else lr_alternative, 1.0).alternative
+        object.__setattr__(self, "test", "lr")
+        object.__setattr__(self, "alpha", as_probability("alpha", alpha))
+        object.__setattr__(self, "fallback", as_int("fallback", fallback, minimum=0))
+        object.__setattr__(self, "rule", "any")
+        object.__setattr__(self, "alternative", "two-sided")
+        object.__setattr__(self, "support", False)
+        object.__setattr__(self, "lr_alternative", _Frozen(alt) if isinstance(alt, np.ndarray) else alt)
 
     def _init_cusum(
         self,
@@ -192,6 +247,20 @@ class SensorPolicy:
         object.__setattr__(self, "support", False)
         object.__setattr__(self, "cusum", cusum)
 
+    def lr_test(self, channel: ChannelLike, design: OnlineDesign, n_steps: int) -> LikelihoodRatioTest:
+        """The likelihood-ratio test of a ``"lr"`` policy for windows of ``n_steps`` steps under
+        ``channel`` and the online ``design`` (:func:`fakeack.likelihood_ratio_test`, cached)."""
+        if self.test != "lr":
+            raise ValueError(f"policy: {self} runs no likelihood-ratio test")
+        return likelihood_ratio_test(
+            channel,
+            design.z0,
+            n_steps,
+            cast(float, self.alpha),
+            design.mu,
+            alternative=self.lr_alternative,
+        )
+
     @property
     def special(self) -> bool:
         """True for ``"offline"`` and ``"never"``."""
@@ -207,6 +276,11 @@ class SensorPolicy:
             what = "" if against is None else f", against {_alternative(against)}"
             h = float(getattr(c, "threshold", math.nan))
             return f"CUSUM (h={h:g}{what}), {self.fallback} {windows} offline after an alarm"
+        if self.test == "lr":
+            return (
+                f"lr test against {_alternative(self.lr_alternative)} at alpha={self.alpha:g}, "
+                f"{self.fallback} {windows} offline after any alarm"
+            )
         side = "" if self.test == "interval" or self.alternative == "two-sided" else f" ({self.alternative})"
         after = "any alarm" if self.rule == "any" else "a harmful alarm"
         # The default (with the check) keeps the form it had before the check existed.
@@ -219,9 +293,16 @@ class SensorPolicy:
 
 def _alternative(alternative: object) -> str:
     """A CUSUM's alternative in words: an attack by its repr, a gap law as such."""
-    if isinstance(alternative, np.ndarray):
-        return f"a gap law on 1..{alternative.size}"
+    if isinstance(alternative, (np.ndarray, _Frozen)):
+        return f"a gap law on 1..{np.asarray(alternative).size}"
     return repr(alternative)
+
+
+class _Frozen(tuple[float, ...]):
+    """A gap pmf as a hashable value, so that a policy stays a dict key (the game's cache)."""
+
+    def __array__(self, dtype: Any = None, copy: Any = None) -> npt.NDArray[np.float64]:
+        return np.array(tuple(self), dtype=float if dtype is None else dtype)
 
 
 _T = TypeVar("_T")
@@ -245,6 +326,7 @@ def _policies(
     rules: str | Iterable[str],
     alternative: str,
     support: bool = True,
+    lr_alternative: object = None,
 ) -> list[SensorPolicy]:
     test_list: list[str] = _listed("tests", tests)
     alpha_list: list[float] = _listed("alphas", alphas)
@@ -255,8 +337,10 @@ def _policies(
     for k in fallback_list:
         as_int("fallbacks", k, minimum=0)
     for t in test_list:
-        if t not in ("count", "interval"):
-            raise ValueError(f"tests: each must be 'count' or 'interval', got {t!r}")
+        if t not in ("count", "interval", "lr"):
+            raise ValueError(f"tests: each must be 'count', 'interval' or 'lr', got {t!r}")
+    if lr_alternative is not None and "lr" not in test_list:
+        raise ValueError("lr_alternative: only with the test 'lr' among tests")
     for r in rule_list:
         if r not in RULES:
             raise ValueError(f"rules: each must be one of {RULES}, got {r!r}")
@@ -265,8 +349,13 @@ def _policies(
         for a in alpha_list:
             for k in fallback_list:
                 for r in rule_list:
-                    alt = alternative if t == "count" else "two-sided"
-                    p = SensorPolicy(t, a, k, r, alt, support=support)
+                    if t == "lr":
+                        if r != "any":
+                            continue  # every alarm of the lr test triggers the fall-back
+                        p = SensorPolicy("lr", a, k, lr_alternative=lr_alternative)
+                    else:
+                        alt = alternative if t == "count" else "two-sided"
+                        p = SensorPolicy(t, a, k, r, alt, support=support)
                     if p not in out:
                         out.append(p)
     return out

@@ -18,6 +18,7 @@ from ..attacks.automata import AttackerAutomaton, MimicryAttack, discard_forgeri
 from ..attacks.kinds import AttackLike
 from ..detection.count import alarm_bounds, harmful_bound
 from ..detection.interval_test import cached_interval_test
+from ..detection.likelihood import lr_tables
 from ..detection.probability import KernelTest
 from ..detection.process import flag_process
 from ..detection.rates import paper_min_gap
@@ -228,6 +229,7 @@ def simulate_game(
     burn_in = as_int("burn_in", burn_in, minimum=0)
     core, automaton = kernel_attack(att, ch, kernel.design)
     cusum = _cusum_args(policy, ch, kernel.design)
+    lr = lr_tables(policy.lr_test(ch, kernel.design, kernel.n)) if policy.test == "lr" else None
     bar = Progress(runs, progress)
     r = kernel.ratio
     try:
@@ -250,6 +252,7 @@ def simulate_game(
             min_gap=kernel.min_gap,
             automaton=automaton,
             cusum=cusum,
+            lr=lr,
         )
     finally:
         bar.close()
@@ -303,6 +306,9 @@ def _kernel_policy(setting: _Setting, policy: SensorPolicy) -> KernelTest:
         return ("cusum", -1, 0, [], [], 0.0, None, cast(int, policy.fallback))
     # A test policy has both (SensorPolicy checks it).
     alpha, fallback = cast(float, policy.alpha), cast(int, policy.fallback)
+    if policy.test == "lr":  # its tables go as the kernel's `lr` argument
+        critical = policy.lr_test(setting.lam, setting.design, setting.n).critical
+        return ("lr", -1, 0, [], [], critical, None, fallback)
     harm = (
         harmful_bound(setting.lam, setting.design, setting.n, setting.beta_bar)
         if policy.rule == "harmful"

@@ -129,6 +129,7 @@ def solve_game(
     authenticated: bool = False,
     support: bool = True,
     attack_prior: float = 1.0,
+    lr_alternative: object = None,
 ) -> GameSolution:
     r"""Solve the zero-sum game between the sensor's policies and a list of attacks.
 
@@ -159,10 +160,11 @@ def solve_game(
         The attacker's choices: ``None`` (no attack), any attack object,
         :class:`fakeack.MimicryAttack` or :class:`fakeack.AttackerAutomaton` (see
         :func:`game_payoff`).
-    tests : sequence of {"count", "interval"}, optional
-        The tests (default both).
+    tests : sequence of {"count", "interval", "lr"}, optional
+        The window tests (default the count and interval tests); ``"lr"`` is the
+        likelihood-ratio test against ``lr_alternative`` (:class:`SensorPolicy`).
     rules : sequence of {"any", "harmful"}, optional
-        The fall-back rules (default both).
+        The fall-back rules (default both; the likelihood-ratio test takes only "any").
     alternative : str, optional
         The count test's alternative (default two-sided).
     beta_bar : float, optional
@@ -181,6 +183,9 @@ def solve_game(
         is then :math:`\pi J(\text{policy}, \text{attack}) + (1 - \pi) J(\text{policy},
         \text{no attack})`, and likewise the energy and d, so that the sensor pays for its false
         alarms on the clean channel. With π = 0 the value is J_on (never test).
+    lr_alternative : RandomBlocking, FlagInjection or array_like, optional
+        The attack the likelihood-ratio test is tuned to (with ``"lr"`` among ``tests``;
+        default ``RandomBlocking(0.2)``).
 
     Returns
     -------
@@ -191,7 +196,7 @@ def solve_game(
     alternative = check_alternative(alternative)
     if not isinstance(support, bool):
         raise TypeError(f"support must be True or False, got {support!r}")
-    policies = _policies(tests, alphas, fallbacks, rules, alternative, support)
+    policies = _policies(tests, alphas, fallbacks, rules, alternative, support, lr_alternative)
     attack_list = _attack_list(attacks)
     setting = _Setting.make(system, lam, ratio, n_steps, beta_bar)
     prior = as_probability("attack_prior", attack_prior, closed=True)

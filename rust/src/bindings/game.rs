@@ -20,8 +20,10 @@ use crate::schedule::{offline_schedule, Ratio};
 /// The policy named `kind`: "online" (never tested), "offline", "count" (alarm iff N <= lo or
 /// N >= hi), "interval" (alarm iff Pearson's X² over `edges`/`expected` exceeds `critical`) or
 /// "cusum" (the statistic of `cusum` = (inc_flag, inc_quiet, threshold), given with it and only
-/// with it); a count or interval test with the support check when `min_gap` > 1 (the others
-/// refuse one: the CUSUM's +inf increments are its own).
+/// with it) or "lr" (the likelihood-ratio test of `lr` = (inc_flag, inc_quiet, opening), alarm
+/// iff Λ >= `critical`; given with it and only with it); a count or interval test with the
+/// support check when `min_gap` > 1 (the others refuse one: the CUSUM's and the likelihood-ratio
+/// test's +inf increments are their own).
 #[allow(clippy::too_many_arguments)]
 fn policy_of(
     kind: &str,
@@ -34,6 +36,7 @@ fn policy_of(
     fallback: u64,
     min_gap: i64,
     cusum: Option<(Vec<f64>, Vec<f64>, f64)>,
+    lr: Option<(Vec<f64>, Vec<f64>, Vec<f64>)>,
 ) -> PyResult<Policy> {
     // A negative value as a ValueError naming the argument, not pyo3's OverflowError.
     let min_gap = u64::try_from(min_gap)
@@ -66,6 +69,21 @@ fn policy_of(
     if cusum.is_some() {
         return Err(Error::invalid("cusum", format!("given with the policy {kind:?}")).into());
     }
+    if (kind == "lr") != lr.is_some() {
+        let why = if lr.is_some() {
+            format!("given with the policy {kind:?}")
+        } else {
+            "the policy \"lr\" needs its statistic".to_string()
+        };
+        return Err(Error::invalid("lr", why).into());
+    }
+    if kind == "lr" && min_gap > 1 {
+        return Err(Error::invalid(
+            "min_gap",
+            "the likelihood-ratio test checks the support by its +inf increments",
+        )
+        .into());
+    }
     let detector = match kind {
         "online" => return Ok(Policy::Online),
         "offline" => return Ok(Policy::Offline),
@@ -75,6 +93,15 @@ fn policy_of(
             expected,
             critical,
         },
+        "lr" => {
+            let (inc_flag, inc_quiet, opening) = lr.unwrap_or_default();
+            Detector::Likelihood {
+                inc_flag,
+                inc_quiet,
+                opening,
+                critical,
+            }
+        }
         _ => {
             return Err(PyValueError::new_err(format!(
                 "policy: unknown kind {kind:?}"
@@ -150,9 +177,11 @@ fn rename(e: Error, pattern_given: bool) -> Error {
 /// flag-ACKs that reach the sensor shorter than it. `automaton`: an attacker automaton
 /// `(flag, quiet, start)` (each state's moves (probability, deliver, next state)) instead of
 /// `attack`, run on the lane kernel. `cusum`: the statistic `(inc_flag, inc_quiet, threshold)`
-/// of the policy "cusum" (whose fall-back is `fallback` windows), run on the lane kernel.
+/// of the policy "cusum" (whose fall-back is `fallback` windows), run on the lane kernel. `lr`:
+/// the likelihood-ratio test's `(inc_flag, inc_quiet, opening)` (policy "lr", with `critical`),
+/// run on the lane kernel.
 #[pyfunction]
-#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None, min_gap=0, automaton=None, cusum=None))]
+#[pyo3(signature = (system, lam, p, q, z0, mu, attack, kind, lo, hi, edges, expected, critical, harmful_at_most, fallback, window, horizon, burn_in, runs, seed, progress, channel_p=None, channel_low=None, channel_high=None, offline_pattern=None, min_gap=0, automaton=None, cusum=None, lr=None))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn simulate_game<'py>(
     py: Python<'py>,
@@ -184,6 +213,7 @@ pub(crate) fn simulate_game<'py>(
     min_gap: i64,
     automaton: Option<(Moves, Moves, usize)>,
     cusum: Option<(Vec<f64>, Vec<f64>, f64)>,
+    lr: Option<(Vec<f64>, Vec<f64>, Vec<f64>)>,
 ) -> PyResult<Bound<'py, PyDict>> {
     if attack.is_some() && automaton.is_some() {
         return Err(PyValueError::new_err(
@@ -217,6 +247,7 @@ pub(crate) fn simulate_game<'py>(
             fallback,
             min_gap,
             cusum,
+            lr,
         )?,
         window,
         horizon,

@@ -31,6 +31,15 @@
 //! the fall-back. An increment of +inf is an immediate alarm (a gap the attack-free protocol
 //! cannot produce: the support check), one of -inf resets W to 0.
 //!
+//! The likelihood-ratio window test ([`Detector::Likelihood`]) reads the same per-step
+//! increments as the CUSUM, without the reflection at 0: an online window's Λ starts at
+//! `opening[min(y, Y) - 1]` (y the gap of its first step; beyond Y the opening grows by the last
+//! quiet increment per step) and adds each step's increment; an increment of +inf makes Λ = +inf
+//! for the rest of the window (the support check), and the window alarms iff Λ >= `critical`. As
+//! for the support check, the first gap after an offline stretch is not read: back online, the
+//! statistic is dormant (Λ = 0, no increments) until a flag-ACK reaches the sensor, and runs from
+//! the next step; the run's start counts as a flag-ACK at step 0.
+//!
 //! Per step: the sensor's power (online: high iff a flag-ACK reached it last step; offline: the
 //! pattern), the arrival (on the i.i.d. channel always at high power, with probability λ at low;
 //! on a Markov channel in state c_k with probability `high[c_k]` or `low[c_k]`, see below), the
@@ -144,6 +153,20 @@ pub enum Detector {
         /// Expected flag-ACKs per bin in a window without attack (all positive).
         expected: Vec<f64>,
         /// The critical value.
+        critical: f64,
+    },
+    /// The likelihood-ratio test: Λ, the window's sum of per-step log-likelihood ratios opened by
+    /// that of the gap running at its start (see the module docs); alarm iff Λ >= `critical`.
+    Likelihood {
+        /// Increment at a step where a flag-ACK reaches the sensor, by y = 1..Y (the last entry
+        /// for every y >= Y); +inf and -inf allowed, NaN not.
+        inc_flag: Vec<f64>,
+        /// Increment at a step where none does, by y likewise; the same length Y.
+        inc_quiet: Vec<f64>,
+        /// The opening at the window's first gap y = 1..Y; beyond Y it grows by the last quiet
+        /// increment per step.
+        opening: Vec<f64>,
+        /// The critical value (finite).
         critical: f64,
     },
 }
@@ -324,6 +347,34 @@ impl GameConfig {
                 return Err(Error::invalid("critical", "must not be NaN"));
             }
         }
+        if let Policy::Test {
+            detector:
+                Detector::Likelihood {
+                    inc_flag,
+                    inc_quiet,
+                    opening,
+                    critical,
+                },
+            ..
+        } = &self.policy
+        {
+            increment_tables(inc_flag, inc_quiet)?;
+            if opening.len() != inc_flag.len() || opening.iter().any(|v| v.is_nan()) {
+                return Err(Error::invalid(
+                    "opening",
+                    format!(
+                        "must have as many entries as inc_flag ({}), none NaN",
+                        inc_flag.len()
+                    ),
+                ));
+            }
+            if !critical.is_finite() {
+                return Err(Error::invalid(
+                    "critical",
+                    format!("must be finite, got {critical}"),
+                ));
+            }
+        }
         if let Policy::Test { min_gap, .. } = &self.policy {
             // No gap is longer than the run.
             if *min_gap > MAX_STEPS {
@@ -340,30 +391,7 @@ impl GameConfig {
             fallback,
         } = &self.policy
         {
-            for (name, table) in [("inc_flag", inc_flag), ("inc_quiet", inc_quiet)] {
-                if table.is_empty() || table.len() > MAX_CUSUM_TABLE {
-                    return Err(Error::invalid(
-                        name,
-                        format!(
-                            "must have 1 to {MAX_CUSUM_TABLE} entries, got {}",
-                            table.len()
-                        ),
-                    ));
-                }
-                if table.iter().any(|v| v.is_nan()) {
-                    return Err(Error::invalid(name, "must not contain NaN"));
-                }
-            }
-            if inc_flag.len() != inc_quiet.len() {
-                return Err(Error::invalid(
-                    "inc_quiet",
-                    format!(
-                        "must have as many entries as inc_flag ({}), got {}",
-                        inc_flag.len(),
-                        inc_quiet.len()
-                    ),
-                ));
-            }
+            increment_tables(inc_flag, inc_quiet)?;
             if !(threshold.is_finite() && *threshold > 0.0) {
                 return Err(Error::invalid(
                     "threshold",
@@ -398,6 +426,36 @@ impl GameConfig {
         let valid = Channel::markov(ch.p.clone(), ch.low.clone(), ch.high.clone())?;
         Ok(valid.stationary().to_vec())
     }
+}
+
+/// The increment tables of the CUSUM or the likelihood-ratio test: 1 to [`MAX_CUSUM_TABLE`]
+/// entries each, the same length, no NaN.
+fn increment_tables(inc_flag: &[f64], inc_quiet: &[f64]) -> Result<()> {
+    for (name, table) in [("inc_flag", inc_flag), ("inc_quiet", inc_quiet)] {
+        if table.is_empty() || table.len() > MAX_CUSUM_TABLE {
+            return Err(Error::invalid(
+                name,
+                format!(
+                    "must have 1 to {MAX_CUSUM_TABLE} entries, got {}",
+                    table.len()
+                ),
+            ));
+        }
+        if table.iter().any(|v| v.is_nan()) {
+            return Err(Error::invalid(name, "must not contain NaN"));
+        }
+    }
+    if inc_flag.len() != inc_quiet.len() {
+        return Err(Error::invalid(
+            "inc_quiet",
+            format!(
+                "must have as many entries as inc_flag ({}), got {}",
+                inc_flag.len(),
+                inc_quiet.len()
+            ),
+        ));
+    }
+    Ok(())
 }
 
 /// [`LinearSystem::simulate_game_with`], on the bit-sliced kernel when `sliced` and the plan

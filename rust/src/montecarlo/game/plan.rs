@@ -12,10 +12,12 @@ pub(super) const RULE_MASK: u8 = 2;
 pub(super) const RULE_RANDOM: u8 = 3;
 pub(super) const RULE_AUTOMATON: u8 = 4;
 
-/// The lane kernel's per-step detection: none, the interval test's histogram, or the CUSUM.
+/// The lane kernel's per-step detection: none, the interval test's histogram, the CUSUM, or the
+/// likelihood-ratio window test's sum.
 pub(super) const DET_NONE: u8 = 0;
 pub(super) const DET_BINS: u8 = 1;
 pub(super) const DET_CUSUM: u8 = 2;
+pub(super) const DET_LR: u8 = 3;
 
 /// A Bernoulli draw from a 16-bit slice, exact to 2^-64 (see the module docs).
 #[derive(Debug, Clone, Copy)]
@@ -101,6 +103,17 @@ pub(super) struct Plan<'a> {
 }
 
 impl<'a> Plan<'a> {
+    /// The policy is the likelihood-ratio window test.
+    pub(super) fn likelihood(&self) -> bool {
+        matches!(
+            self.cfg.policy,
+            Policy::Test {
+                detector: Detector::Likelihood { .. },
+                ..
+            }
+        )
+    }
+
     pub(super) fn new(sys: &LinearSystem, cfg: &'a GameConfig) -> Result<Self> {
         cfg.validate()?;
         let channel = match &cfg.channel {

@@ -11,6 +11,8 @@ mod automaton;
 mod channel;
 /// The CUSUM policy.
 mod cusum;
+/// The likelihood-ratio window test.
+mod lr;
 /// The support check.
 mod support;
 

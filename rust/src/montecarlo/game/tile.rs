@@ -25,9 +25,9 @@ pub(super) struct Tile {
     pub(super) online: [bool; LANES],
     /// Windows (steps, for the CUSUM) left offline.
     pub(super) left: [u64; LANES],
-    /// The CUSUM statistic W.
+    /// The CUSUM statistic W, or the likelihood-ratio test's Λ.
     pub(super) stat: [f64; LANES],
-    /// The CUSUM runs (online and not dormant).
+    /// The CUSUM or Λ runs (online and not dormant).
     pub(super) watching: [bool; LANES],
     pub(super) pos: [usize; LANES],
     pub(super) count: [i64; LANES],
@@ -74,8 +74,15 @@ impl Tile {
             short: [false; LANES],
             online: [!offline; LANES],
             left: [0; LANES],
-            // W = 0 at the initial condition, as after a flag-ACK at step 0.
-            stat: [0.0; LANES],
+            // W = 0 at the initial condition, as after a flag-ACK at step 0; the likelihood-ratio
+            // test's first window opens at y = 1.
+            stat: [match &plan.cfg.policy {
+                Policy::Test {
+                    detector: Detector::Likelihood { opening, .. },
+                    ..
+                } => opening[0],
+                _ => 0.0,
+            }; LANES],
             watching: [true; LANES],
             pos: [0; LANES],
             count: [0; LANES],
@@ -96,6 +103,8 @@ impl Tile {
         let mu = plan.cfg.design.mu < 1.0;
         let det = if matches!(plan.cfg.policy, Policy::Cusum { .. }) {
             DET_CUSUM
+        } else if plan.likelihood() {
+            DET_LR
         } else if plan.bins > 0 {
             DET_BINS
         } else {
@@ -106,6 +115,7 @@ impl Tile {
                 match det {
                     DET_NONE => self.kernel::<$mu, $forge, DET_NONE, { $rule }, $ch>(plan, steps),
                     DET_BINS => self.kernel::<$mu, $forge, DET_BINS, { $rule }, $ch>(plan, steps),
+                    DET_LR => self.kernel::<$mu, $forge, DET_LR, { $rule }, $ch>(plan, steps),
                     _ => self.kernel::<$mu, $forge, DET_CUSUM, { $rule }, $ch>(plan, steps),
                 }
             };
@@ -188,6 +198,15 @@ impl Tile {
                 threshold,
                 ..
             } => (inc_flag, inc_quiet, *threshold),
+            Policy::Test {
+                detector:
+                    Detector::Likelihood {
+                        inc_flag,
+                        inc_quiet,
+                        ..
+                    },
+                ..
+            } => (inc_flag, inc_quiet, 0.0),
             _ => (&[], &[], 0.0),
         };
         let fall_steps = plan.fall_steps;
@@ -295,6 +314,23 @@ impl Tile {
                         self.watching[l] = delivered;
                     }
                 }
+                if DET == DET_LR && online {
+                    if self.watching[l] {
+                        let y = gap.min(inc_flag.len()) - 1;
+                        let inc = if delivered { inc_flag[y] } else { inc_quiet[y] };
+                        // +inf (an outcome impossible without attack) decides the window, even
+                        // after a -inf, so Λ is never NaN.
+                        let stat = self.stat[l];
+                        self.stat[l] = if inc == f64::INFINITY || stat == f64::INFINITY {
+                            f64::INFINITY
+                        } else {
+                            stat + inc
+                        };
+                    } else {
+                        // Dormant back online: the first flag-ACK starts Λ, with y = 1 next step.
+                        self.watching[l] = delivered;
+                    }
+                }
                 if let Some(ch) = channel {
                     // c_k -> c_{k+1}, from a fresh output of the lane's stream.
                     let rng = &mut self.rng[l];
@@ -322,6 +358,7 @@ impl Tile {
                     let n = self.count[l];
                     let alarm = match detector {
                         Detector::Count { lo, hi } => n <= *lo || n >= *hi,
+                        Detector::Likelihood { critical, .. } => self.stat[l] >= *critical,
                         Detector::Interval {
                             expected, critical, ..
                         } => {
@@ -357,6 +394,22 @@ impl Tile {
                     }
                 }
             }
+            if let Policy::Test {
+                detector:
+                    Detector::Likelihood {
+                        inc_quiet, opening, ..
+                    },
+                ..
+            } = &plan.cfg.policy
+            {
+                // Offline the statistic is dormant; online the next window opens at its gap.
+                self.watching[l] &= self.online[l];
+                self.stat[l] = if self.watching[l] {
+                    opening_at(opening, inc_quiet, self.gap[l] + 1)
+                } else {
+                    0.0
+                };
+            }
             self.count[l] = 0;
             self.short[l] = false;
             for b in &mut self.bins {
@@ -378,6 +431,21 @@ impl Tile {
         self.high = [0; LANES];
         self.online_steps = [0; LANES];
         self.delivered = [0; LANES];
+    }
+}
+
+/// The likelihood-ratio test's opening at the window's first gap y >= 1: the table up to its
+/// length Y, then one more last quiet increment per step (an infinite opening stays).
+fn opening_at(opening: &[f64], inc_quiet: &[f64], y: usize) -> f64 {
+    let t = opening.len();
+    if y <= t {
+        return opening[y - 1];
+    }
+    let (o, q) = (opening[t - 1], inc_quiet[t - 1]);
+    if !o.is_finite() || q == 0.0 {
+        o
+    } else {
+        o + (y - t) as f64 * q
     }
 }
 

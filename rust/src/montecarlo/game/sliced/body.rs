@@ -353,6 +353,7 @@ impl<const D: usize> State<D> {
             let n = self.count.planes();
             let alarm = match detector {
                 Detector::Count { lo, hi } => or(at_most(&n, *lo), not(at_most(&n, hi - 1))),
+                Detector::Likelihood { .. } => unreachable!("the lane kernel runs it (Sliced::of)"),
                 Detector::Interval {
                     expected, critical, ..
                 } => {

@@ -133,8 +133,9 @@ impl Sliced {
     /// mask with more than 8 runs of ones).
     pub(super) fn of(plan: &Plan<'_>) -> Option<Self> {
         let cfg = plan.cfg;
-        // A Markov channel and the CUSUM policy run on the lane kernel.
-        if cfg.channel.is_some() || matches!(cfg.policy, Policy::Cusum { .. }) {
+        // A Markov channel, the CUSUM policy and the likelihood-ratio test run on the lane kernel.
+        if cfg.channel.is_some() || matches!(cfg.policy, Policy::Cusum { .. }) || plan.likelihood()
+        {
             return None;
         }
         let z0 = usize::try_from(cfg.design.z0).ok()?;

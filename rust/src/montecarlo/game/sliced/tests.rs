@@ -224,6 +224,7 @@ fn end_window(cfg: &GameConfig, r: &mut Run, counted: u64, out: &mut SlicedOut, 
             let n = r.count;
             let alarm = match detector {
                 Detector::Count { lo, hi } => n <= *lo || n >= *hi,
+                Detector::Likelihood { .. } => unreachable!("the lane kernel runs it"),
                 Detector::Interval {
                     expected, critical, ..
                 } => {

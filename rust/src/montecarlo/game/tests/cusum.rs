@@ -27,7 +27,12 @@ fn lanes(sys: &LinearSystem, cfg: &GameConfig) -> GameRuns {
 /// step (steps 3, 6, ... from the initial condition: high power, then two losses); offline at
 /// high power every packet arrives and no flag is sent, offline at low power a flag goes out at
 /// z = 2 and the loss after it makes z = 1, so one every second step.
-fn deterministic(policy: Policy, offline: Vec<u8>, window: u64, horizon: u64) -> GameConfig {
+pub(super) fn deterministic(
+    policy: Policy,
+    offline: Vec<u8>,
+    window: u64,
+    horizon: u64,
+) -> GameConfig {
     let mut cfg = config(None, policy);
     cfg.channel = Some(MarkovChannel {
         p: vec![vec![1.0]],
