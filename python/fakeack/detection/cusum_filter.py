@@ -157,8 +157,12 @@ class _Statistic:
         else:
             assert isinstance(self.alt, _Hazards)
             qa, pa = self.alt.probabilities(self.y)
-        inc = np.where(x, log_ratio(pa, p0), log_ratio(qa, q0))
-        with np.errstate(invalid="ignore"):  # inf - inf: W is already +inf and stays there
+        num, den = np.where(x, pa, qa), np.where(x, p0, q0)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # log 0 = -inf: an outcome only the alternative cannot produce gives -inf; one the
+            # attack-free law cannot produce gives +inf whatever the alternative (the support
+            # check); inf - inf below: W is already +inf and stays there.
+            inc = np.where(den > 0.0, np.log(num) - np.log(den), math.inf)
             W = np.maximum(0.0, self.W + inc)
         self.W = np.where(self.W == math.inf, math.inf, W)
         self.F0 = self.null.update(AB0, x)
@@ -299,20 +303,28 @@ def passage_threshold(
     max_steps: int,
 ) -> float:
     r"""The filter CUSUM threshold whose simulated ARL0 is ``arl0``: the mean first passage of W
-    over a grid of 400 levels from one simulation (each run followed until W reaches the top
-    level), interpolated linearly in log ARL0 between the two levels that bracket ``arl0``.
+    over a grid of 400 levels from one simulation of ``runs`` runs (each followed until W reaches
+    the top level), interpolated linearly in log ARL0 between the two levels that bracket
+    ``arl0``.
 
-    The top level starts at :math:`\log` ``arl0`` + 0.5 (under the attack-free law
-    :math:`e^{W}` grows no faster than a martingale, so ARL0 is about :math:`e^h` or more) and
-    rises by 1 until its mean passage exceeds ``arl0``.
+    The top level is located first by a pilot of a tenth of the runs (raised by 0.5 from 1 until
+    the pilot's mean passage there exceeds 1.3 ``arl0``), then raised by 0.5 until the full
+    simulation's does.
     """
     null = flag_process(channel, design)
-    top = math.log(arl0) + 0.5
-    for _ in range(8):
+
+    def passages(top: float, n: int) -> tuple[FloatArray, FloatArray]:
         levels = np.linspace(top / 400, top, 400)
-        mean = simulate_passage_times(null, channel, design, alternative, levels, runs, seed, max_steps).mean(
-            axis=0
-        )
+        times = simulate_passage_times(null, channel, design, alternative, levels, n, seed, max_steps)
+        return levels, np.asarray(times.mean(axis=0))
+
+    top, pilot = 1.0, max(runs // 10, 20)
+    while passages(top, pilot)[1][-1] < 1.3 * arl0:
+        top += 0.5
+        if top > 200.0:
+            raise ValueError(f"arl0 = {arl0}: no threshold up to 200 reaches it")
+    for _ in range(20):
+        levels, mean = passages(top, runs)
         if mean[0] > arl0:
             raise ValueError(f"arl0 = {arl0}: even the threshold {levels[0]:.3g} gives a longer mean run")
         if mean[-1] >= arl0:
@@ -320,5 +332,5 @@ def passage_threshold(
             lo, hi = math.log(mean[j - 1]), math.log(mean[j])
             t = 1.0 if hi == lo else (math.log(arl0) - lo) / (hi - lo)
             return float(levels[j - 1] + t * (levels[j] - levels[j - 1]))
-        top += 1.0
+        top += 0.5
     raise ValueError(f"arl0 = {arl0}: no threshold up to {top:.3g} reaches it")
