@@ -12,6 +12,8 @@ length; rounding **up** a lower bound. The estimate splits each new W between it
 in proportion to the distance (the mean of W kept), which is accurate to second order; the
 bracket closes like :math:`\Delta` as the caller adds bins. The bracket is rigorous for the
 renewal start; for the stationary start the pre-change law of W is itself computed on the grid.
+The filter CUSUM (``likelihood="filter"``) has no finite chain; its run lengths are simulated
+(``fakeack.detection.cusum_filter``).
 """
 
 from __future__ import annotations
@@ -295,7 +297,7 @@ def cusum_run_length(
         Grid points of W to start from (default 25 per unit of threshold, at least 50); the
         first comparison is with twice as many.
     rtol : float, optional
-        Target relative accuracy of the estimate (default 0.01).
+        Target relative accuracy of the estimate (default 0.01; the renewal statistic only).
     authenticated : bool, optional
         Whether the sensor rejects forged flag-ACKs (only the attack's blocking part acts).
     max_states : int, optional
