@@ -70,6 +70,20 @@ def test_on_the_papers_channel_the_filter_is_the_renewal_statistic(alternative):
     assert np.isinf(filt[6:]).any() and np.isfinite(filt[:6]).all()  # short gaps hit the support check
 
 
+def test_a_gap_pmf_alternative_keeps_its_hazards():
+    """Past the pmf's support the alternative is impossible (W restarts at 0), as in the renewal
+    statistic; on the paper's channel the two paths agree."""
+    rng = np.random.default_rng(12)
+    pmf = [0.0, 0.0, 0.2, 0.3, 0.3, 0.2]
+    x = gap_streams(np.array([0, 0, 0.2, 0.3, 0.2, 0.1, 0.1, 0.1]), 8, 200, rng)
+    filt = fa.CusumTest(pmf, 2.0, likelihood="filter").statistic(0.5, DESIGN, x)
+    np.testing.assert_allclose(filt, fa.CusumTest(pmf, 2.0).statistic(0.5, DESIGN, x), atol=1e-12, rtol=0)
+    y = np.ones(x.shape, int)
+    for k in range(1, x.shape[1]):
+        y[:, k] = np.where(x[:, k - 1], 1, y[:, k - 1] + 1)
+    assert np.all(filt[y > 6] == 0.0) and (y > 6).any()
+
+
 def protocol_matrices(p, q, good, bad, z0=2, beta=0.0):
     """The protocol written from its description, as a chain over (c, z, high) with the bit x:
     a high-power packet always arrives, a low one with probability lam_c; a loss adds one to the

@@ -44,7 +44,7 @@ from .._internal.validate import as_real
 from ..attacks.kinds import FlagInjection, RandomBlocking
 from ..model.channels import Channel, ChannelLike, as_channel
 from ..model.schedules import OnlineDesign
-from .cusum_filter import LIKELIHOODS, filter_statistic, log_ratio, pmf_hazards
+from .cusum_filter import LIKELIHOODS, _filter_statistic, _log_ratio, _pmf_hazards
 from .process import FlagProcess, flag_process
 
 __all__ = [
@@ -165,12 +165,12 @@ def _extend(h: FloatArray, n: int) -> FloatArray:
 def _cached_increments(channel: Channel, design: OnlineDesign, alternative: Any) -> CusumIncrements:
     h0 = gap_hazards(flag_process(channel, design))
     if isinstance(alternative, tuple):  # a pmf, hashed as a tuple
-        ha = pmf_hazards(np.asarray(alternative))
+        ha = _pmf_hazards(np.asarray(alternative))
         n = max(h0.size, ha.size + 1)
         h0 = _extend(h0, n)
         beyond = n - ha.size
         ha = np.concatenate((ha, np.zeros(beyond)))
-        flag, quiet = log_ratio(ha, h0), log_ratio(1.0 - ha, 1.0 - h0)
+        flag, quiet = _log_ratio(ha, h0), _log_ratio(1.0 - ha, 1.0 - h0)
         # Past the pmf's support the alternative is impossible: W restarts at 0 on every step.
         flag[-beyond:] = -math.inf
         quiet[-beyond:] = -math.inf
@@ -178,7 +178,7 @@ def _cached_increments(channel: Channel, design: OnlineDesign, alternative: Any)
         ha = gap_hazards(flag_process(channel, design, alternative))
         n = max(h0.size, ha.size)
         h0, ha = _extend(h0, n), _extend(ha, n)
-        flag, quiet = log_ratio(ha, h0), log_ratio(1.0 - ha, 1.0 - h0)
+        flag, quiet = _log_ratio(ha, h0), _log_ratio(1.0 - ha, 1.0 - h0)
     for a in (flag, quiet, h0, ha):
         a.setflags(write=False)
     return CusumIncrements(flag, quiet, h0, ha)
@@ -309,7 +309,7 @@ class CusumTest:
             raise ValueError(f"delivered must have shape (steps,) or (runs, steps), got {x.shape}")
         batch = x.reshape(-1, x.shape[-1])
         if self.likelihood == "filter":
-            return np.asarray(filter_statistic(ch, design, key, batch).reshape(x.shape))
+            return np.asarray(_filter_statistic(ch, design, key, batch).reshape(x.shape))
         inc = _cached_increments(ch, design, key)
         W = np.zeros(batch.shape[0])
         y = np.ones(batch.shape[0], dtype=np.int64)

@@ -49,8 +49,6 @@ from .process import FlagProcess, flag_process
 __all__ = [
     "LIKELIHOODS",
     "SimulatedRunLength",
-    "filter_statistic",
-    "simulate_passage_times",
 ]
 
 #: The CUSUM's likelihoods: the renewal (Palm gap hazards) and the forward filter's.
@@ -59,7 +57,7 @@ LIKELIHOODS = ("renewal", "filter")
 MAX_DENSE = 256
 
 
-def pmf_hazards(pmf: FloatArray) -> FloatArray:
+def _pmf_hazards(pmf: FloatArray) -> FloatArray:
     """Hazards of a finite gap pmf (pmf[g - 1] = P(G = g)); 1 at the last gap of the support."""
     survival = 1.0 - np.concatenate(([0.0], np.cumsum(pmf)[:-1]))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -70,7 +68,7 @@ def pmf_hazards(pmf: FloatArray) -> FloatArray:
     return np.asarray(h)
 
 
-def log_ratio(num: FloatArray, den: FloatArray) -> FloatArray:
+def _log_ratio(num: FloatArray, den: FloatArray) -> FloatArray:
     """log(num/den) of an alternative's and the attack-free probability of one step's outcome:
     +inf where the attack-free law cannot produce it (the support check, whatever the
     alternative says), -inf where only the alternative cannot."""
@@ -122,7 +120,7 @@ class _Hazards:
     """A gap pmf alternative: its hazard at the gap y; past its support nothing is possible."""
 
     def __init__(self, pmf: FloatArray) -> None:
-        self.h = pmf_hazards(pmf)
+        self.h = _pmf_hazards(pmf)
 
     def probabilities(self, y: Any) -> tuple[FloatArray, FloatArray]:
         inside = y <= self.h.size
@@ -177,7 +175,7 @@ class _Statistic:
         self.y, self.W = self.y[which], self.W[which]
 
 
-def filter_statistic(channel: Channel, design: OnlineDesign, alternative: Any, delivered: Any) -> FloatArray:
+def _filter_statistic(channel: Channel, design: OnlineDesign, alternative: Any, delivered: Any) -> FloatArray:
     """The filter CUSUM's path over a batch of bit sequences (runs x steps, bool); see
     :meth:`fakeack.CusumTest.statistic`, which validates the arguments."""
     runs, steps = delivered.shape
@@ -209,7 +207,7 @@ class _Sampler:
         return col % self.n, col >= self.n
 
 
-def simulate_passage_times(
+def _simulate_passage_times(
     true: FlagProcess,
     channel: Channel,
     design: OnlineDesign,
@@ -274,7 +272,7 @@ class SimulatedRunLength:
     """``"renewal"``: W = 0 and the filters at their Palm laws just after a delivered flag-ACK."""
 
 
-def check_runs(runs: object, seed: object, max_steps: object) -> tuple[int, int, int]:
+def _check_runs(runs: object, seed: object, max_steps: object) -> tuple[int, int, int]:
     """The simulation's arguments, checked (a seed is required: results are reproducible)."""
     n = as_int("runs", runs, minimum=2)
     if seed is None:
@@ -285,7 +283,7 @@ def check_runs(runs: object, seed: object, max_steps: object) -> tuple[int, int,
     return n, s, as_int("max_steps", max_steps, minimum=1)
 
 
-def summarise(times: Any, runs: int, seed: int) -> SimulatedRunLength:
+def _summarise(times: Any, runs: int, seed: int) -> SimulatedRunLength:
     """The mean of a column of run lengths and its standard error."""
     t = np.asarray(times, dtype=float)
     return SimulatedRunLength(
@@ -293,7 +291,7 @@ def summarise(times: Any, runs: int, seed: int) -> SimulatedRunLength:
     )
 
 
-def passage_threshold(
+def _passage_threshold(
     channel: Channel,
     design: OnlineDesign,
     alternative: Any,
@@ -315,7 +313,7 @@ def passage_threshold(
 
     def passages(top: float, n: int) -> tuple[FloatArray, FloatArray]:
         levels = np.linspace(top / 400, top, 400)
-        times = simulate_passage_times(null, channel, design, alternative, levels, n, seed, max_steps)
+        times = _simulate_passage_times(null, channel, design, alternative, levels, n, seed, max_steps)
         return levels, np.asarray(times.mean(axis=0))
 
     top, pilot = 1.0, max(runs // 10, 20)

@@ -33,7 +33,13 @@ from ..attacks.automata import discard_forgeries
 from ..model.channels import ChannelLike, as_channel
 from ..model.schedules import OnlineDesign
 from .cusum import CusumIncrements, CusumTest
-from .cusum_filter import SimulatedRunLength, check_runs, passage_threshold, simulate_passage_times, summarise
+from .cusum_filter import (
+    SimulatedRunLength,
+    _check_runs,
+    _passage_threshold,
+    _simulate_passage_times,
+    _summarise,
+)
 from .process import FlagProcess, flag_process
 
 __all__ = [
@@ -354,13 +360,13 @@ def cusum_run_length(
             raise ValueError("start: the filter CUSUM's run length is simulated from the renewal start only")
         if bins is not None:
             raise ValueError("bins: the filter CUSUM's run length is simulated, on no grid")
-        n, s, limit = check_runs(
+        n, s, limit = _check_runs(
             2000 if runs is None else runs, seed, 10**6 if max_steps is None else max_steps
         )
         process = flag_process(ch, design, attack)
         _, key = cusum._key(ch, design)
-        times = simulate_passage_times(process, ch, design, key, np.array([h]), n, s, limit)
-        return summarise(times[:, 0], n, s)
+        times = _simulate_passage_times(process, ch, design, key, np.array([h]), n, s, limit)
+        return _summarise(times[:, 0], n, s)
     for name, value in (("runs", runs), ("seed", seed), ("max_steps", max_steps)):
         if value is not None:
             raise ValueError(f"{name}: only a filter CUSUM's run length is simulated")
@@ -456,9 +462,9 @@ def cusum_threshold(
         raise ValueError(f"arl0 must be > 1, got {target}")
     test = CusumTest(alternative, 1.0, likelihood=likelihood)  # validates both, naming them
     if likelihood == "filter":
-        n, s, limit = check_runs(runs, seed, max_steps)
+        n, s, limit = _check_runs(runs, seed, max_steps)
         ch, key = test._key(channel, design)
-        return passage_threshold(ch, design, key, target, n, s, limit)
+        return _passage_threshold(ch, design, key, target, n, s, limit)
 
     def gap(log_h: float) -> float:
         test = CusumTest(alternative, math.exp(log_h))
