@@ -22,6 +22,7 @@ with the count in ``process``.
 from .count import ALTERNATIVES, Detection, count_alarm_bounds, detect_attack, harmful_count_bound
 from .curves import DetectionCurves, detection_curves
 from .cusum import CusumIncrements, CusumTest
+from .cusum_filter import SimulatedRunLength
 from .flags import FlagRates, delivered_flag_rate, estimate_beta, flag_interval_moments, flag_rates
 from .interval_test import IntervalDetection, IntervalTest, detect_intervals, interval_test
 from .intervals import FlagCount, IntervalLaw, flag_count_moments, flag_interval_law
@@ -62,6 +63,7 @@ __all__ = [
     "CusumTest",
     "CusumIncrements",
     "CusumRunLength",
+    "SimulatedRunLength",
     "cusum_run_length",
     "cusum_threshold",
     "LikelihoodRatioTest",

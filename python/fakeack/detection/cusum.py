@@ -23,8 +23,11 @@ underflows). On the paper's channel the gaps are i.i.d. without attack and under
 :class:`CusumTest` takes, so the statistic is the exact log-likelihood ratio. On a Markov channel
 successive gaps are correlated; the statistic then uses the same Palm hazards, a renewal
 likelihood that is a well-defined detector whose run lengths are still computed exactly
-(:func:`fakeack.cusum_run_length`), but not the likelihood ratio of the whole stream (that one
-would carry the channel's belief state, which no finite chain holds).
+(:func:`fakeack.cusum_run_length`), but not the likelihood ratio of the whole stream. That one,
+``CusumTest(..., likelihood="filter")``, replaces :math:`h(y)` by the forward filter's predictive
+probability of a flag-ACK given every bit seen so far (``fakeack.detection.cusum_filter``); its
+state is a continuous belief over the channel, which no finite chain holds, so its run lengths
+are simulated.
 """
 
 from __future__ import annotations
@@ -41,6 +44,7 @@ from .._internal.validate import as_real
 from ..attacks.kinds import FlagInjection, RandomBlocking
 from ..model.channels import Channel, ChannelLike, as_channel
 from ..model.schedules import OnlineDesign
+from .cusum_filter import LIKELIHOODS, _filter_statistic, _log_ratio, _pmf_hazards
 from .process import FlagProcess, flag_process
 
 __all__ = [
@@ -105,17 +109,6 @@ def gap_hazards(process: FlagProcess) -> FloatArray:
     )
 
 
-def _pmf_hazards(pmf: FloatArray) -> FloatArray:
-    """Hazards of a finite gap pmf (pmf[g - 1] = P(G = g)); 1 at the last gap of the support."""
-    survival = 1.0 - np.concatenate(([0.0], np.cumsum(pmf)[:-1]))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        h = np.where(survival > 1e-15, pmf / np.maximum(survival, 1e-300), 1.0)
-    last = int(np.flatnonzero(pmf)[-1])
-    h = np.clip(h[: last + 1], 0.0, 1.0)
-    h[last] = 1.0
-    return np.asarray(h)
-
-
 def _as_alternative(alternative: object) -> RandomBlocking | FlagInjection | FloatArray:
     if isinstance(alternative, FlagInjection):
         if alternative.block is not None and not isinstance(alternative.block, RandomBlocking):
@@ -162,18 +155,6 @@ class CusumIncrements:
     def length(self) -> int:
         """Y: the last entry holds for every gap of Y steps or more."""
         return int(self.flag.size)
-
-
-def _log_ratio(num: FloatArray, den: FloatArray) -> FloatArray:
-    """log(num/den) of an alternative's and the attack-free probability of one step's outcome:
-    +inf where the attack-free law cannot produce it (the support check, whatever the
-    alternative says), -inf where only the alternative cannot."""
-    out = np.full(num.shape, math.inf)
-    possible = den > 0
-    out[possible & (num <= 0)] = -math.inf
-    both = possible & (num > 0)
-    out[both] = np.log(num[both]) - np.log(den[both])
-    return out
 
 
 def _extend(h: FloatArray, n: int) -> FloatArray:
@@ -224,6 +205,14 @@ class CusumTest:
         attacks do not have i.i.d. gaps (TypeError).
     threshold : float
         The alarm level h > 0.
+    likelihood : {"renewal", "filter"}, optional
+        ``"renewal"`` (default): the increments use the Palm gap hazards :math:`h(y)`, the exact
+        log-likelihood ratio where gaps are i.i.d. (the paper's channel), run lengths exact.
+        ``"filter"``: they use the forward filters' predictive flag probabilities, the exact
+        log-likelihood ratio of the whole stream on any channel
+        (``fakeack.detection.cusum_filter``); run lengths simulated, and the closed-loop
+        policy (:class:`fakeack.SensorPolicy`) cannot run it. Both start just after a delivered
+        flag-ACK and agree on the paper's channel.
 
     Examples
     --------
@@ -236,13 +225,17 @@ class CusumTest:
 
     alternative: RandomBlocking | FlagInjection | FloatArray
     threshold: float
+    likelihood: str = "renewal"
 
-    def __init__(self, alternative: object, threshold: float) -> None:
+    def __init__(self, alternative: object, threshold: float, *, likelihood: str = "renewal") -> None:
         object.__setattr__(self, "alternative", _as_alternative(alternative))
         h = as_real("threshold", threshold)
         if h <= 0.0:
             raise ValueError(f"threshold must be > 0, got {h}")
         object.__setattr__(self, "threshold", h)
+        if likelihood not in LIKELIHOODS:
+            raise ValueError(f"likelihood must be 'renewal' or 'filter', got {likelihood!r}")
+        object.__setattr__(self, "likelihood", likelihood)
 
     def increments(self, channel: ChannelLike, design: OnlineDesign) -> CusumIncrements:
         r"""The increments :math:`\log(h_a/h_0)` and :math:`\log((1-h_a)/(1-h_0))` per gap.
@@ -257,19 +250,84 @@ class CusumTest:
         Returns
         -------
         CusumIncrements
-            Tables over y = 1..Y; the last entry holds for longer gaps.
+            Tables over y = 1..Y; the last entry holds for longer gaps. They are the renewal
+            statistic's, whatever ``likelihood``.
         """
+        ch, key = self._key(channel, design)
+        return _cached_increments(ch, design, key)
+
+    def _key(self, channel: ChannelLike, design: OnlineDesign) -> tuple[Channel, Any]:
         ch = as_channel(channel, "channel")
         if not isinstance(design, OnlineDesign):
             raise TypeError(f"design must be a fakeack.OnlineDesign, got {type(design).__name__}")
         alt = self.alternative
-        key: Any = tuple(float(x) for x in alt) if isinstance(alt, np.ndarray) else alt
-        return _cached_increments(ch, design, key)
+        return ch, (tuple(float(x) for x in alt) if isinstance(alt, np.ndarray) else alt)
+
+    def statistic(self, channel: ChannelLike, design: OnlineDesign, delivered: object) -> FloatArray:
+        r"""The path of W over given flag-ACK streams, from the renewal start.
+
+        Step k adds the increment of the bit ``delivered[k]`` (a flag-ACK reached the sensor or
+        not) and W restarts at 0 below it; nothing alarms or restarts at the threshold, so the
+        run length is the first step with W >= ``threshold``. The first step is the one after a
+        delivered flag-ACK (gap y = 1; the filters at their Palm laws). W = +inf (a stream the
+        attack-free law cannot produce) stays +inf.
+
+        Parameters
+        ----------
+        channel : Channel or float
+            The true channel of both laws (a float: the paper's channel).
+        design : OnlineDesign
+            The online schedule.
+        delivered : array_like of bool
+            One stream (steps,) or a batch (runs, steps).
+
+        Returns
+        -------
+        numpy.ndarray
+            W after each step, the shape of ``delivered``.
+
+        Raises
+        ------
+        TypeError, ValueError
+            For a bad channel, design or stream, naming it.
+
+        Examples
+        --------
+        >>> import fakeack as fa
+        >>> test = fa.CusumTest(fa.RandomBlocking(0.5), 4.0, likelihood="filter")
+        >>> w = test.statistic(0.5, fa.OnlineDesign(2), [0, 0, 0, 1, 0, 1])
+        >>> bool(w[-1] == float("inf"))   # a gap of 2 steps: impossible without attack
+        True
+        """
+        ch, key = self._key(channel, design)
+        x = np.asarray(delivered)
+        if x.dtype != np.bool_:
+            if not np.issubdtype(x.dtype, np.integer) or not np.isin(x, (0, 1)).all():
+                raise TypeError(f"delivered must hold booleans (or 0/1), got dtype {x.dtype}")
+            x = x.astype(bool)
+        if x.ndim not in (1, 2) or x.shape[-1] == 0:
+            raise ValueError(f"delivered must have shape (steps,) or (runs, steps), got {x.shape}")
+        batch = x.reshape(-1, x.shape[-1])
+        if self.likelihood == "filter":
+            return np.asarray(_filter_statistic(ch, design, key, batch).reshape(x.shape))
+        inc = _cached_increments(ch, design, key)
+        W = np.zeros(batch.shape[0])
+        y = np.ones(batch.shape[0], dtype=np.int64)
+        out = np.empty(batch.shape)
+        for k in range(batch.shape[1]):
+            at = np.minimum(y, inc.length) - 1
+            with np.errstate(invalid="ignore"):  # inf - inf: W is +inf already and stays there
+                new = np.maximum(0.0, W + np.where(batch[:, k], inc.flag[at], inc.quiet[at]))
+            W = np.where(W == math.inf, math.inf, new)
+            out[:, k] = W
+            y = np.where(batch[:, k], 1, y + 1)
+        return np.asarray(out.reshape(x.shape))
 
     def __str__(self) -> str:
         alt = self.alternative
         what = f"a gap pmf of {alt.size} steps" if isinstance(alt, np.ndarray) else str(alt)
-        return f"CUSUM against {what}, threshold {self.threshold:g}"
+        tail = ", filter likelihood" if self.likelihood == "filter" else ""
+        return f"CUSUM against {what}, threshold {self.threshold:g}{tail}"
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, CusumTest):
@@ -280,8 +338,8 @@ class CusumTest:
             if isinstance(a, np.ndarray) and isinstance(b, np.ndarray)
             else (not isinstance(a, np.ndarray) and not isinstance(b, np.ndarray) and a == b)
         )
-        return same and self.threshold == other.threshold
+        return same and self.threshold == other.threshold and self.likelihood == other.likelihood
 
     def __hash__(self) -> int:
         a = self.alternative
-        return hash((tuple(a.tolist()) if isinstance(a, np.ndarray) else a, self.threshold))
+        return hash((tuple(a.tolist()) if isinstance(a, np.ndarray) else a, self.threshold, self.likelihood))

@@ -12,6 +12,8 @@ length; rounding **up** a lower bound. The estimate splits each new W between it
 in proportion to the distance (the mean of W kept), which is accurate to second order; the
 bracket closes like :math:`\Delta` as the caller adds bins. The bracket is rigorous for the
 renewal start; for the stationary start the pre-change law of W is itself computed on the grid.
+The filter CUSUM (``likelihood="filter"``) has no finite chain; its run lengths are simulated
+(``fakeack.detection.cusum_filter``).
 """
 
 from __future__ import annotations
@@ -31,6 +33,13 @@ from ..attacks.automata import discard_forgeries
 from ..model.channels import ChannelLike, as_channel
 from ..model.schedules import OnlineDesign
 from .cusum import CusumIncrements, CusumTest
+from .cusum_filter import (
+    SimulatedRunLength,
+    _check_runs,
+    _passage_threshold,
+    _simulate_passage_times,
+    _summarise,
+)
 from .process import FlagProcess, flag_process
 
 __all__ = [
@@ -255,7 +264,10 @@ def cusum_run_length(
     rtol: float = 0.01,
     authenticated: bool = False,
     max_states: int = MAX_CHAIN_STATES,
-) -> CusumRunLength:
+    runs: int | None = None,
+    seed: int | None = None,
+    max_steps: int | None = None,
+) -> CusumRunLength | SimulatedRunLength:
     r"""The mean number of steps until a flag-ACK CUSUM alarms: ARL0 without attack, the mean
     detection delay under one.
 
@@ -266,6 +278,11 @@ def cusum_run_length(
     (doubled) until the estimate moves by less than ``rtol`` of itself, or the chain would pass
     ``max_states`` (then a ``UserWarning`` says so); the rigorous but slowly closing bracket of
     the two one-sided roundings is reported beside it.
+
+    A filter CUSUM (``likelihood="filter"``) carries a continuous belief that no finite chain
+    holds: its mean run length is estimated from ``runs`` simulated runs of the attack's flag
+    process (from the paper's initial condition) beside the two forward filters, with its
+    standard error (``fakeack.detection.cusum_filter``). Only the renewal start is simulated.
 
     Parameters
     ----------
@@ -286,23 +303,31 @@ def cusum_run_length(
         Grid points of W to start from (default 25 per unit of threshold, at least 50); the
         first comparison is with twice as many.
     rtol : float, optional
-        Target relative accuracy of the estimate (default 0.01).
+        Target relative accuracy of the estimate (default 0.01; the renewal statistic only).
     authenticated : bool, optional
         Whether the sensor rejects forged flag-ACKs (only the attack's blocking part acts).
     max_states : int, optional
         Largest chain built (default 10^6; the sparse LU of the largest takes a few GB).
+    runs : int, optional
+        A filter CUSUM only: runs simulated (default 2000).
+    seed : int
+        A filter CUSUM only, required: the seed of the draws.
+    max_steps : int, optional
+        A filter CUSUM only: refuse (``ValueError`` naming it) if some run has not alarmed by
+        then (default 10^6 steps).
 
     Returns
     -------
-    CusumRunLength
+    CusumRunLength or SimulatedRunLength
         ``mean`` and its ``error``, the bracket ``lower``/``upper``, the grid and the chain's
-        size.
+        size; for a filter CUSUM, ``mean`` over the runs and its standard error ``error``.
 
     Raises
     ------
     TypeError, ValueError
         For bad arguments (naming them); ``start="stationary"`` where the attack cannot begin in
-        its start state from some attack-free state.
+        its start state from some attack-free state, or for a filter CUSUM; ``bins``, ``runs``,
+        ``seed`` or ``max_steps`` given to the statistic that does not take them.
 
     Examples
     --------
@@ -330,6 +355,21 @@ def cusum_run_length(
     m = as_int("bins", bins, minimum=2) if bins is not None else max(50, int(math.ceil(25 * h)))
     if authenticated and attack is not None:
         attack = discard_forgeries(attack, channel=ch, design=design)
+    if cusum.likelihood == "filter":
+        if start != "renewal":
+            raise ValueError("start: the filter CUSUM's run length is simulated from the renewal start only")
+        if bins is not None:
+            raise ValueError("bins: the filter CUSUM's run length is simulated, on no grid")
+        n, s, limit = _check_runs(
+            2000 if runs is None else runs, seed, 10**6 if max_steps is None else max_steps
+        )
+        process = flag_process(ch, design, attack)
+        _, key = cusum._key(ch, design)
+        times = _simulate_passage_times(process, ch, design, key, np.array([h]), n, s, limit)
+        return _summarise(times[:, 0], n, s)
+    for name, value in (("runs", runs), ("seed", seed), ("max_steps", max_steps)):
+        if value is not None:
+            raise ValueError(f"{name}: only a filter CUSUM's run length is simulated")
     inc = cusum.increments(ch, design)
     null = flag_process(ch, design)
     process = flag_process(ch, design, attack) if attack is not None else null
@@ -373,12 +413,19 @@ def cusum_threshold(
     arl0: float,
     *,
     rtol: float = 0.02,
+    likelihood: str = "renewal",
+    runs: int = 2000,
+    seed: int | None = None,
+    max_steps: int = 10**6,
 ) -> float:
     r"""The CUSUM threshold h whose mean time to a false alarm (ARL0, renewal start) is ``arl0``.
 
     ARL0 grows with h; the root of :math:`\mathrm{ARL}_0(h) = ` ``arl0`` is found by Brent's
     method on the estimate of :func:`cusum_run_length` (to a relative 1e-4 in ARL0, each value
-    within ``rtol``).
+    within ``rtol``). For the filter CUSUM (``likelihood="filter"``) one simulation of ``runs``
+    attack-free runs gives the mean first passage of W over a grid of levels, the ARL0 of every
+    threshold on the same draws, and h is interpolated where it meets ``arl0``: the ARL0 of the
+    result carries the simulation's relative standard error, about 1/sqrt(``runs``).
 
     Parameters
     ----------
@@ -391,7 +438,11 @@ def cusum_threshold(
     arl0 : float
         The mean number of steps to a false alarm, > 1.
     rtol : float, optional
-        As in :func:`cusum_run_length`.
+        As in :func:`cusum_run_length` (the renewal statistic only).
+    likelihood : {"renewal", "filter"}, optional
+        The statistic (:class:`fakeack.CusumTest`).
+    runs, seed, max_steps : int, optional
+        The filter statistic's simulation (:func:`cusum_run_length`); ``seed`` is required there.
 
     Returns
     -------
@@ -409,7 +460,11 @@ def cusum_threshold(
     target = as_real("arl0", arl0)
     if target <= 1.0:
         raise ValueError(f"arl0 must be > 1, got {target}")
-    CusumTest(alternative, 1.0)  # validates the alternative, naming it
+    test = CusumTest(alternative, 1.0, likelihood=likelihood)  # validates both, naming them
+    if likelihood == "filter":
+        n, s, limit = _check_runs(runs, seed, max_steps)
+        ch, key = test._key(channel, design)
+        return _passage_threshold(ch, design, key, target, n, s, limit)
 
     def gap(log_h: float) -> float:
         test = CusumTest(alternative, math.exp(log_h))

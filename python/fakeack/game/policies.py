@@ -231,6 +231,11 @@ class SensorPolicy:
                 "cusum must have a threshold and an increments method (a fakeack.CusumTest), "
                 f"got {type(cusum).__name__}"
             )
+        if getattr(cusum, "likelihood", "renewal") != "renewal":
+            raise ValueError(
+                "cusum: the closed-loop policy runs the renewal statistic (its increments per gap); "
+                "a filter CUSUM's forward filters are not in the closed-loop kernel"
+            )
         if alpha is not None:
             raise ValueError("alpha: the CUSUM's level is its threshold; it takes no alpha")
         if rule != "any":
