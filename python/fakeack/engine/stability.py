@@ -35,7 +35,8 @@ from .._internal.validate import as_int
 from ..model.channels import GilbertElliott
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
-from .scenario import DEFAULT_MAX_STATES, Scenario, ScenarioAttack
+from .binding import ScenarioAttack
+from .scenario import DEFAULT_MAX_STATES, Scenario
 
 __all__ = [
     "StabilityRegion",
