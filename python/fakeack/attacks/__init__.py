@@ -1,5 +1,6 @@
-"""Attacks on the flag-ACKs and jamming of the data channel: the attack objects, the attack chain and its stationary law, the cost
-under attack, the attacker threshold and the sensor's decision, and the families beyond the paper's."""
+"""Attacks on the flag-ACKs and jamming of the data channel: the attack objects, the attack chain
+and its stationary law, the cost under attack, the attacker threshold and the sensor's decision,
+and the families beyond the paper's."""
 
 from .automata import AttackerAutomaton, MimicryAttack, as_automaton, discard_forgeries
 from .chain import (

@@ -113,6 +113,13 @@ class Jamming:
         """The pattern as an ``int64`` array of 0/1."""
         return np.array(self.pattern, dtype=np.int64)
 
+    @property
+    def label(self) -> str:
+        """``"jam:<pattern>"``."""
+        return (
+            f"jam:{''.join(map(str, self.pattern))}" if self.period <= _REPR else f"jam:<{self.period} steps>"
+        )
+
     def jammed_channel(self, channel: ChannelLike) -> MarkovChannel:
         r"""The channel of :math:`(c, \varphi)`, :math:`\varphi = (k - 1) \bmod L` the phase.
 
@@ -146,7 +153,7 @@ class Jamming:
                 f"channel: {k} states times the jamming period {period} exceed {MAX_JAMMED_STATES} states"
             )
         shift = np.roll(np.eye(period), 1, axis=1)  # phase phi -> phi + 1 mod L
-        P = np.kron(np.asarray(ch.P), shift)
+        P = np.kron(np.asarray(ch.P), shift).astype(np.float64)
         free = 1.0 - self.jammed.astype(np.float64)
         low = np.kron(np.asarray(ch.low), free)
         high = np.kron(np.asarray(ch.high), free)
@@ -211,6 +218,11 @@ class RandomJamming:
     def jammed_fraction(self) -> float:
         """The long-run fraction of jammed steps (the rate)."""
         return self.rate
+
+    @property
+    def label(self) -> str:
+        """``"jam:random:<rate>"``."""
+        return f"jam:random:{self.rate:g}"
 
     def jammed_channel(self, channel: ChannelLike) -> MarkovChannel:
         """The channel with every arrival probability multiplied by ``1 - rate``.

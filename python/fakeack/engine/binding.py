@@ -7,15 +7,18 @@ from typing import Any, NamedTuple, cast
 import scipy.sparse as sp
 
 from ..attacks.automata import AttackerAutomaton, MimicryAttack, Transition
+from ..attacks.jamming import JammingAttack
 from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack, core_attack
 from ..model.channels import Channel
 from ..model.schedules import OfflineSchedule, OnlineDesign
-from .chains import SchedulePolicy, has_chain
+from .chains import AttackPolicy, SchedulePolicy, has_chain
 
 __all__ = [
     "EngineAutomaton",
     "ScenarioAttack",
     "ScenarioSchedule",
+    "AnySchedule",
+    "AnyAttack",
     "as_schedule",
     "as_scenario_attack",
     "binding_args",
@@ -27,6 +30,10 @@ MAX_OFFLINE_PERIOD = 10_000_000
 
 ScenarioAttack = Attack | MimicryAttack | AttackerAutomaton
 ScenarioSchedule = OnlineDesign | OfflineSchedule
+#: Every schedule a scenario takes.
+AnySchedule = OnlineDesign | OfflineSchedule | SchedulePolicy
+#: Every attack a scenario takes.
+AnyAttack = Attack | MimicryAttack | AttackerAutomaton | JammingAttack | AttackPolicy
 
 
 class EngineAutomaton(NamedTuple):

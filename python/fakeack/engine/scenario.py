@@ -34,8 +34,9 @@ from ..model.system import LinearSystem, compiled
 from ..montecarlo.trace import TraceCurve
 from .automaton import automaton_args
 from .binding import (
+    AnyAttack,
+    AnySchedule,
     EngineAutomaton,
-    ScenarioAttack,
     ScenarioSchedule,
     as_scenario_attack,
     as_schedule,
@@ -143,14 +144,14 @@ class Scenario:
         self.system = system
         ch, sched = as_channel(channel, "channel"), as_schedule(schedule)
         self.channel: Channel | None = ch
-        self.schedule: OnlineDesign | OfflineSchedule | SchedulePolicy | None = sched
+        self.schedule: AnySchedule | None = sched
         self.authenticated = bool(authenticated)
         self.max_states = as_int("max_states", max_states, minimum=1)
         self._chain: ScenarioChain | None = None
         self._rates: Any = None  # the engine of the power and flag-ACK rates, when not _engine
         self._refused: str | None = None  # why the rates are not known
         if isinstance(attack, (Jamming, RandomJamming)):
-            self.attack: ScenarioAttack | JammingAttack | AttackPolicy | None = attack
+            self.attack: AnyAttack | None = attack
             if not isinstance(sched, (OnlineDesign, OfflineSchedule)):
                 raise TypeError(
                     "attack: jamming applies to an OnlineDesign or OfflineSchedule; a sensor policy's "
