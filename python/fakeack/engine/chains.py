@@ -18,6 +18,7 @@ from typing import NamedTuple, Protocol
 
 import numpy as np
 import scipy.sparse as sp
+import scipy.sparse.linalg as spla
 from scipy.sparse.csgraph import breadth_first_order, connected_components
 
 from .._internal.types import FloatArray
@@ -32,7 +33,7 @@ __all__ = [
     "has_chain",
     "reachable",
     "restricted",
-    "closed_class_count",
+    "long_run_law",
     "chain_mean",
     "chain_flag_rates",
 ]
@@ -57,8 +58,8 @@ class ScenarioChain(NamedTuple):
     r"""The law of the state before step 1 (:math:`\tau_0 = 0`)."""
     labels: list[str]
     """One readable label per state."""
-    stationary: FloatArray
-    """The long-run law of the states (one closed class), for the rates."""
+    stationary: FloatArray | None
+    """The long-run law of the states, for the rates (None: computed from ``init``)."""
     energy: FloatArray | None = None
     """Per state, the expected energy of the step that leaves it (a sensor policy's levels)."""
     high: FloatArray | None = None
@@ -102,35 +103,81 @@ def reachable(K0: sp.csr_array, K1: sp.csr_array, init: FloatArray) -> np.ndarra
 
 
 def restricted(chain: ScenarioChain, role: str) -> ScenarioChain:
-    """``chain`` on the states its initial law reaches (the engine requires every state reached)."""
+    """``chain`` on the states its initial law reaches (the engine requires every state reached),
+    with its long-run law."""
     n = chain.K0.shape[0]
     for name, arr in (("init", chain.init), ("stationary", chain.stationary)):
-        if np.shape(arr) != (n,):
+        if arr is not None and np.shape(arr) != (n,):
             raise ValueError(f"{role}: its chain's {name} has shape {np.shape(arr)}, expected {(n,)}")
     if len(chain.labels) != n:
         raise ValueError(f"{role}: its chain has {len(chain.labels)} labels for {n} states")
-    keep = reachable(chain.K0, chain.K1, np.asarray(chain.init))
-    pi = np.asarray(chain.stationary, dtype=np.float64)
-    lost = float(pi.sum() - pi[keep].sum())
-    if lost > _LOST_MASS:
-        raise ValueError(f"{role}: its chain settles where the initial law never leads (mass {lost:.3g})")
-    if keep.size == n:
-        return chain
+    init = np.asarray(chain.init, dtype=np.float64)
+    keep = reachable(chain.K0, chain.K1, init)
+    K0, K1 = sp.csr_array(chain.K0[keep][:, keep]), sp.csr_array(chain.K1[keep][:, keep])
+    if chain.stationary is None:
+        pi = long_run_law(K0, K1, init[keep])
+    else:
+        full = np.asarray(chain.stationary, dtype=np.float64)
+        lost = float(full.sum() - full[keep].sum())
+        if lost > _LOST_MASS:
+            raise ValueError(f"{role}: its chain settles where the initial law never leads (mass {lost:.3g})")
+        pi = full[keep] / full[keep].sum()
 
     def cut(v: FloatArray | None) -> FloatArray | None:
         return None if v is None else np.asarray(v)[keep]
 
     flags = None if chain.flags is None else tuple_cut(chain.flags, keep)
-    return ScenarioChain(
-        sp.csr_array(chain.K0[keep][:, keep]),
-        sp.csr_array(chain.K1[keep][:, keep]),
-        np.asarray(chain.init)[keep],
-        [chain.labels[i] for i in keep],
-        pi[keep] / pi[keep].sum(),
-        cut(chain.energy),
-        cut(chain.high),
-        flags,
-    )
+    labels = chain.labels if keep.size == n else [chain.labels[i] for i in keep]
+    return ScenarioChain(K0, K1, init[keep], labels, pi, cut(chain.energy), cut(chain.high), flags)
+
+
+def long_run_law(K0: sp.csr_array, K1: sp.csr_array, init: FloatArray) -> FloatArray:
+    r"""The Cesàro limit of the law of e from ``init``: each closed class's stationary law,
+    weighted by the chance of ending in it (every state reachable from ``init``).
+
+    The weights are the mass of ``init`` in the class plus :math:`y K_{TC}\mathbf 1`,
+    :math:`y = \text{init}_T (I - K_{TT})^{-1}` over the transient states T; a class's law
+    solves :math:`\pi K = \pi` with one balance equation replaced by :math:`\sum \pi = 1`.
+    """
+    K = sp.csr_array(K0 + K1)
+    n = K.shape[0]
+    classes = closed_classes_of(K)
+    pi = np.zeros(n)
+    in_class = np.zeros(n, dtype=bool)
+    for members in classes:
+        in_class[members] = True
+    transient = np.flatnonzero(~in_class)
+    y = np.zeros(0)
+    if transient.size:
+        KTT = K[transient][:, transient]
+        M = sp.csc_array((sp.identity(transient.size) - KTT).T)
+        y = np.atleast_1d(np.asarray(spla.spsolve(M, init[transient]), dtype=np.float64))
+    for members in classes:
+        weight = float(init[members].sum())
+        if transient.size:
+            weight += float(y @ np.asarray(K[transient][:, members].sum(axis=1)).ravel())
+        if weight <= 0.0:
+            continue
+        m = members.size
+        if m == 1:
+            pi[members] = weight
+            continue
+        B = sp.lil_array((sp.identity(m) - K[members][:, members]).T)
+        B[m - 1, :] = np.ones(m)
+        rhs = np.zeros(m)
+        rhs[m - 1] = 1.0
+        law = np.clip(np.asarray(spla.spsolve(sp.csc_array(B), rhs), dtype=np.float64), 0.0, None)
+        pi[members] = weight * law / law.sum()
+    return pi / pi.sum()
+
+
+def closed_classes_of(K: sp.csr_array) -> list[np.ndarray]:
+    """The closed communicating classes of the transition graph of K."""
+    n_comp, label = connected_components(K, directed=True, connection="strong")
+    rows, cols = K.nonzero()
+    leaves = np.zeros(n_comp, dtype=bool)
+    leaves[label[rows][label[rows] != label[cols]]] = True
+    return [np.flatnonzero(label == c) for c in range(n_comp) if not leaves[c]]
 
 
 def tuple_cut(
@@ -140,18 +187,9 @@ def tuple_cut(
     return (np.asarray(flags[0])[keep], np.asarray(flags[1])[keep], np.asarray(flags[2])[keep])
 
 
-def closed_class_count(K0: sp.csr_array, K1: sp.csr_array) -> int:
-    """The number of closed communicating classes of ``K0 + K1``."""
-    graph = sp.csr_array(K0 + K1)
-    n_comp, label = connected_components(graph, directed=True, connection="strong")
-    rows, cols = graph.nonzero()
-    leaves = np.zeros(n_comp, dtype=bool)
-    leaves[label[rows][label[rows] != label[cols]]] = True
-    return int(n_comp - leaves.sum())
-
-
 def chain_mean(chain: ScenarioChain, values: FloatArray) -> float:
     """The long-run mean of a per-state quantity, :math:`\\sum_e \\pi_e v_e`."""
+    assert chain.stationary is not None  # restricted() computes it
     return float(np.asarray(chain.stationary) @ np.asarray(values, dtype=np.float64))
 
 

@@ -1,15 +1,16 @@
-r"""Scenarios under jamming of the data channel (:class:`fakeack.Jamming`,
-:class:`fakeack.RandomJamming`).
+r"""Scenarios under a jamming pattern (:class:`fakeack.Jamming`): the automaton E written out here.
 
-Random jamming is the channel with every arrival probability times :math:`1 - r`, and the
-built-in engine computes everything on it. A jamming pattern of period L is the channel of
-:math:`(c_k, (k-1) \bmod L)` whose arrival probabilities vanish in the jammed phases; the
-built-in engine starts a channel in its stationary law, a uniformly drawn phase, so the engine's
-automaton on that channel is taken and started again at phase 0 (the state before step 1 with
-:math:`c_1` stationary and phase 0), on the states that start reaches. Its long-run law may
-depend on the phase at step 1 (an offline schedule whose period shares a factor with L, or an
-online protocol that never forgets its start): the automaton given this way weighs each closed
-class by the chance of ending in it from phase 0, and is exact there.
+A pattern of period L makes the channel the Markov chain of :math:`c'_k = (c_k, (k-1) \bmod L)`
+whose arrival probabilities vanish in the jammed phases. The built-in engine starts a channel in
+its stationary law, which would draw the phase at random; here the phase is 0 at step 1, so the
+automaton is written out with that start and solved as an automaton given as :math:`K_0` and
+:math:`K_1`. Its state before step k is the engine's: :math:`(c'_k, z, p)`, z the detector's zero
+count after step k - 1 and p the power of step k (online), or :math:`(c'_k, m)` with m the
+offline phase. One step (the engine's order, docs page "The exact engine"): the packet arrives
+with :math:`\lambda_p(c'_k)`; the detector's count restarts at an arrival, else grows to z + 1,
+and a flag-ACK is sent surely at :math:`z + 1 > z_0` and with probability :math:`\mu` at
+:math:`z + 1 = z_0` (the count then restarts), making the next step high-power; the channel
+moves by P and the phase by one.
 """
 
 from __future__ import annotations
@@ -19,13 +20,13 @@ from typing import Any
 import numpy as np
 import scipy.sparse as sp
 
-from .. import _fakeack
+from .._internal.types import FloatArray
 from ..attacks.jamming import Jamming
 from ..model.channels import Channel
-from .automaton import automaton_args
-from .chains import closed_class_count, reachable
+from ..model.schedules import OfflineSchedule, OnlineDesign
+from .chains import ScenarioChain
 
-__all__ = ["csr", "phase_zero_engine"]
+__all__ = ["csr", "jammed_chain"]
 
 
 def csr(coo: tuple[Any, Any, Any], n: int) -> sp.csr_array:
@@ -34,43 +35,98 @@ def csr(coo: tuple[Any, Any, Any], n: int) -> sp.csr_array:
     return sp.csr_array((vals.astype(np.float64), (rows, cols)), shape=(n, n))
 
 
-def _named(label: str, period: int) -> str:
-    """``c=5 ...`` of the jammed channel as ``c=2 jam=1 ...`` (the channel state and the jamming phase)."""
-    head, _, rest = label.partition(" ")
-    c, phase = divmod(int(head.removeprefix("c=")), period)
-    return f"c={c} jam={phase} {rest}".rstrip()
-
-
-def phase_zero_engine(
-    base: Any, channel: Channel, jam: Jamming, online: bool, max_states: int
-) -> tuple[Any, str | None]:
-    """The engine of the automaton of ``base`` (built on ``jam.jammed_channel(channel)``) started at
-    phase 0, and None when ``base``'s power and flag-ACK rates are those from phase 0, else the
-    reason they are not.
-    """
-    labels, k0, k1 = base.automaton()
-    n = len(labels)
-    K0, K1 = csr(k0, n), csr(k1, n)
+def _jammed_parts(channel: Channel, jam: Jamming) -> tuple[sp.coo_array, FloatArray, FloatArray]:
+    """P, low and high of the channel of (c, phase), state ``c * L + phase`` (P sparse)."""
     period = jam.period
-    jammed_pi = np.kron(np.asarray(channel.stationary), np.full(period, 1.0 / period))
-    # The engine numbers its initial states first, one per channel state of positive
-    # stationary mass, in the channel's order.
-    init = np.zeros(n)
-    for i, c in enumerate(np.flatnonzero(jammed_pi > 0.0)):
-        if not labels[i].startswith(f"c={c} "):
-            raise RuntimeError(f"attack: the engine's state {i} is {labels[i]!r}, not channel state {c}")
-        if c % period == 0:
-            init[i] = channel.stationary[c // period]
-    init /= init.sum()
-    keep = reachable(K0, K1, init)
-    named = [_named(labels[i], period) for i in keep]
-    args = automaton_args(K0[keep][:, keep], K1[keep][:, keep], init[keep], named, max_states)
-    engine = _fakeack.Engine.from_automaton(*args)
-    note = None
-    if online and closed_class_count(K0, K1) > 1:
-        note = (
-            "attack: under this jamming pattern the online protocol's long run depends on the phase at "
-            "step 1 (its automaton has several closed classes), and the power and flag-ACK rates are "
-            "not computed from phase 0; cost, holding_time_law and cost_curve are"
+    shift = sp.csr_array((np.ones(period), (np.arange(period), (np.arange(period) + 1) % period)))
+    P = sp.coo_array(sp.kron(sp.csr_array(np.asarray(channel.P)), shift))
+    free = 1.0 - jam.jammed.astype(np.float64)
+    low = np.kron(np.asarray(channel.low), free).astype(np.float64)
+    return P, low, np.kron(np.asarray(channel.high), free).astype(np.float64)
+
+
+def jammed_chain(
+    channel: Channel, schedule: OnlineDesign | OfflineSchedule, jam: Jamming, max_states: int
+) -> ScenarioChain:
+    """The automaton E of ``schedule`` on ``channel`` under ``jam``, from phase 0 at step 1.
+
+    Initial law: :math:`c_1` stationary at phase 0, high power and the count at 0 (online), the
+    offline phase 0. Per state: the step's power and its flag-ACKs (sent = delivered, none
+    forged: the jammer leaves the flag-ACKs alone; none for an offline sensor).
+    """
+    P, low, high = _jammed_parts(channel, jam)
+    kc = P.shape[0]
+    online = isinstance(schedule, OnlineDesign)
+    z0, mu = 0, 1.0
+    if isinstance(schedule, OnlineDesign):
+        z0, mu = int(schedule.z0), float(schedule.mu)
+        n_x, power = 2 * (z0 + 1), np.tile([0, 1], z0 + 1)  # x = 2 z + p
+        count = np.repeat(np.arange(z0 + 1), 2)
+    else:
+        pattern = np.asarray(schedule.pattern, dtype=np.int64)
+        n_x, power = pattern.size, pattern
+    n = kc * n_x
+    if n > max_states:
+        raise ValueError(
+            f"max_states: the jammed automaton has {n} states (channel {channel.n_states} x jamming "
+            f"period {jam.period} x {n_x}), more than {max_states}; refused before allocating"
         )
-    return engine, note
+    arrive = np.where(power[None, :] == 1, high[:, None], low[:, None])  # (kc, n_x)
+    lose = 1.0 - arrive
+    rows0: list[Any] = []
+    cols0: list[Any] = []
+    vals0: list[Any] = []
+    rows1: list[Any] = []
+    cols1: list[Any] = []
+    vals1: list[Any] = []
+    c_from, c_to, move = np.asarray(P.row), np.asarray(P.col), np.asarray(P.data)
+    sent = np.zeros((kc, n_x))
+    for x in range(n_x):
+        src = c_from * n_x + x
+        if online:
+            arrived_to = 0  # count 0, low power
+            z1 = int(count[x]) + 1
+            if z1 > z0:
+                lost_to = [(1.0, 1)]  # flag: count 0, high power
+            elif z1 == z0:
+                lost_to = [(mu, 1), (1.0 - mu, 2 * z0)]
+            else:
+                lost_to = [(1.0, 2 * z1)]
+            sent[:, x] = lose[:, x] * sum(w for w, to in lost_to if to == 1)
+        else:
+            arrived_to = (x + 1) % n_x
+            lost_to = [(1.0, arrived_to)]
+        rows1.append(src)
+        cols1.append(c_to * n_x + arrived_to)
+        vals1.append(move * arrive[c_from, x])
+        for w, to in lost_to:
+            if w > 0.0:
+                rows0.append(src)
+                cols0.append(c_to * n_x + to)
+                vals0.append(move * lose[c_from, x] * w)
+
+    def build(r: list[Any], c: list[Any], v: list[Any]) -> sp.csr_array:
+        m = sp.csr_array((np.concatenate(v), (np.concatenate(r), np.concatenate(c))), shape=(n, n))
+        m.eliminate_zeros()
+        return m
+
+    init = np.zeros(n)
+    start = 1 if online else 0  # x of count 0 and high power, or offline phase 0
+    init[np.arange(channel.n_states) * jam.period * n_x + start] = channel.stationary
+    labels = [
+        f"c={c // jam.period} jam={c % jam.period} "
+        + (f"z={count[x]} power={'high' if power[x] else 'low'}" if online else f"phase={x}")
+        for c in range(kc)
+        for x in range(n_x)
+    ]
+    high_step = np.tile(power.astype(np.float64), kc)
+    flags = (sent.ravel(), sent.ravel(), np.zeros(n))
+    return ScenarioChain(
+        build(rows0, cols0, vals0),
+        build(rows1, cols1, vals1),
+        init,
+        labels,
+        None,
+        high=high_step,
+        flags=flags,
+    )

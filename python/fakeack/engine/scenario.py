@@ -51,7 +51,7 @@ from .chains import (
     has_chain,
     restricted,
 )
-from .jammed import csr, phase_zero_engine
+from .jammed import csr, jammed_chain
 
 __all__ = [
     "Scenario",
@@ -111,8 +111,10 @@ class Scenario:
     Every scenario's cost, :meth:`stability_index`, :meth:`holding_time_law`, :meth:`cost_curve`
     and :meth:`automaton` are exact. The rates need the protocol: :meth:`high_power_rate` and
     :meth:`flag_rates` raise ValueError for a sensor policy with L power levels (its
-    :meth:`energy_per_step` takes no energies: the levels carry them), and, under a jamming
-    pattern, for an online protocol whose long run depends on the phase at step 1.
+    :meth:`energy_per_step` takes no energies: the levels carry them). Under a jamming pattern
+    the automaton is written out from phase 0 at step 1 and solved as one given by
+    :math:`K_0` and :math:`K_1`; when its long run depends on the phase (several closed
+    classes), every figure is the one from phase 0.
 
     Raises
     ------
@@ -148,8 +150,6 @@ class Scenario:
         self.authenticated = bool(authenticated)
         self.max_states = as_int("max_states", max_states, minimum=1)
         self._chain: ScenarioChain | None = None
-        self._rates: Any = None  # the engine of the power and flag-ACK rates, when not _engine
-        self._refused: str | None = None  # why the rates are not known
         if isinstance(attack, (Jamming, RandomJamming)):
             self.attack: AnyAttack | None = attack
             if not isinstance(sched, (OnlineDesign, OfflineSchedule)):
@@ -194,18 +194,18 @@ class Scenario:
             )
         self._chain = restricted(chain, role)
         c = self._chain
-        return _fakeack.Engine.from_automaton(*automaton_args(c.K0, c.K1, c.init, c.labels, self.max_states))
+        args = automaton_args(c.K0, c.K1, c.init, c.labels, self.max_states)
+        try:
+            return _fakeack.Engine.from_automaton(*args)
+        except ValueError as exc:  # no arrival from some state: the policy's doing
+            raise ValueError(f"{role}: {exc}") from None
 
     def _jammed(self, ch: Channel, sched: ScenarioSchedule, jam: JammingAttack) -> Any:
-        """The engine under jamming: the jammed channel, from phase 0 for a pattern."""
-        base = _fakeack.Engine(*binding_args(jam.jammed_channel(ch), sched, None, self.max_states))
+        """The engine under jamming: random jamming on the jammed channel; a pattern's automaton
+        written out from phase 0 (:mod:`fakeack.engine.jammed`)."""
         if isinstance(jam, RandomJamming):
-            return base
-        engine, self._refused = phase_zero_engine(
-            base, ch, jam, isinstance(sched, OnlineDesign), self.max_states
-        )
-        self._rates = base
-        return engine
+            return _fakeack.Engine(*binding_args(jam.jammed_channel(ch), sched, None, self.max_states))
+        return self._given(jammed_chain(ch, sched, jam, self.max_states), "attack")
 
     @classmethod
     def from_automaton(
@@ -283,7 +283,7 @@ class Scenario:
         self.system = system
         self.channel, self.schedule, self.attack = None, None, None
         self.authenticated = False
-        self._chain, self._rates, self._refused = None, None, None
+        self._chain = None
         args = automaton_args(K0, K1, init, labels, max_states)
         self.max_states = args[-1]
         self._engine = _fakeack.Engine.from_automaton(*args)
@@ -299,11 +299,9 @@ class Scenario:
                 f"automaton: {what} needs a channel and a schedule; an automaton given as K0 and K1 "
                 "carries no power or flag-ACK information"
             )
-        if self._refused is not None:
-            raise ValueError(f"{self._refused} ({what})")
         if self._chain is not None:
             return self._chain
-        return self._engine if self._rates is None else self._rates
+        return self._engine
 
     def _policy(self) -> str:
         """``"schedule: HoldingTimePolicy"``: the role and the type of the policy that gave the chain."""
@@ -346,8 +344,7 @@ class Scenario:
         ValueError
             For a scenario built by :meth:`from_automaton`, which carries no power information;
             for a sensor policy of L power levels (not a high and a low one: see
-            :meth:`energy_per_step`); under a jamming pattern, for an online protocol whose long
-            run depends on the phase at step 1.
+            :meth:`energy_per_step`).
         """
         src = self._rate_source("high_power_rate")
         if isinstance(src, ScenarioChain):
@@ -409,8 +406,7 @@ class Scenario:
         ------
         ValueError
             For a scenario built by :meth:`from_automaton`, which carries no flag-ACK
-            information; for a sensor policy on per-packet ACKs, which has no flag-ACKs; under a
-            jamming pattern, for an online protocol whose long run depends on the phase at step 1.
+            information; for a sensor policy on per-packet ACKs, which has no flag-ACKs.
         """
         src = self._rate_source("flag_rates")
         if isinstance(src, ScenarioChain):
