@@ -137,7 +137,7 @@ def long_run_law(K0: sp.csr_array, K1: sp.csr_array, init: FloatArray) -> FloatA
 
     The weights are the mass of ``init`` in the class plus :math:`y K_{TC}\mathbf 1`,
     :math:`y = \text{init}_T (I - K_{TT})^{-1}` over the transient states T; a class's law
-    solves :math:`\pi K = \pi` with one balance equation replaced by :math:`\sum \pi = 1`.
+    solves :math:`\pi K = \pi` with its first state's :math:`\pi` set to 1, then normalised.
     """
     K = sp.csr_array(K0 + K1)
     n = K.shape[0]
@@ -162,11 +162,13 @@ def long_run_law(K0: sp.csr_array, K1: sp.csr_array, init: FloatArray) -> FloatA
         if m == 1:
             pi[members] = weight
             continue
-        B = sp.lil_array((sp.identity(m) - K[members][:, members]).T)
-        B[m - 1, :] = np.ones(m)
-        rhs = np.zeros(m)
-        rhs[m - 1] = 1.0
-        law = np.clip(np.asarray(spla.spsolve(sp.csc_array(B), rhs), dtype=np.float64), 0.0, None)
+        # pi_r = 1 for the first member, the other balance equations for the rest: no dense
+        # normalisation row to fill the LU in.
+        Kc = K[members][:, members]
+        M = sp.csc_array((sp.identity(m) - Kc).T.tocsr()[1:][:, 1:])
+        rhs = np.asarray(Kc[[0]][:, 1:].todense()).ravel()
+        rest = np.atleast_1d(np.asarray(spla.spsolve(M, rhs), dtype=np.float64))
+        law = np.clip(np.concatenate([[1.0], rest]), 0.0, None)
         pi[members] = weight * law / law.sum()
     return pi / pi.sum()
 

@@ -81,27 +81,32 @@ def jammed_chain(
     vals1: list[Any] = []
     c_from, c_to, move = np.asarray(P.row), np.asarray(P.col), np.asarray(P.data)
     sent = np.zeros((kc, n_x))
-    for x in range(n_x):
-        src = c_from * n_x + x
-        if online:
-            arrived_to = 0  # count 0, low power
-            z1 = int(count[x]) + 1
-            if z1 > z0:
-                lost_to = [(1.0, 1)]  # flag: count 0, high power
-            elif z1 == z0:
-                lost_to = [(mu, 1), (1.0 - mu, 2 * z0)]
-            else:
-                lost_to = [(1.0, 2 * z1)]
-            sent[:, x] = lose[:, x] * sum(w for w, to in lost_to if to == 1)
+    if not online:  # every phase moves to the next, whatever the packet did
+        phases = np.arange(n_x)
+        src = (c_from[:, None] * n_x + phases).ravel()
+        dst = (c_to[:, None] * n_x + (phases + 1) % n_x).ravel()
+        rows0 += [src]
+        rows1 += [src]
+        cols0 += [dst]
+        cols1 += [dst]
+        vals0 += [(move[:, None] * lose[c_from]).ravel()]
+        vals1 += [(move[:, None] * arrive[c_from]).ravel()]
+    for x in range(n_x if online else 0):
+        from_x = c_from * n_x + x
+        z1 = int(count[x]) + 1
+        if z1 > z0:
+            lost_to = [(1.0, 1)]  # a flag-ACK: count 0, high power
+        elif z1 == z0:
+            lost_to = [(mu, 1), (1.0 - mu, 2 * z0)]
         else:
-            arrived_to = (x + 1) % n_x
-            lost_to = [(1.0, arrived_to)]
-        rows1.append(src)
-        cols1.append(c_to * n_x + arrived_to)
+            lost_to = [(1.0, 2 * z1)]
+        sent[:, x] = lose[:, x] * sum(w for w, to in lost_to if to == 1)
+        rows1.append(from_x)
+        cols1.append(c_to * n_x)  # an arrival: count 0, low power
         vals1.append(move * arrive[c_from, x])
         for w, to in lost_to:
             if w > 0.0:
-                rows0.append(src)
+                rows0.append(from_x)
                 cols0.append(c_to * n_x + to)
                 vals0.append(move * lose[c_from, x] * w)
 
