@@ -96,6 +96,17 @@ def test_pattern_matches_the_periodic_closed_form(offline, pattern):
     assert_allclose(sc.cost_curve(3 * N).trace, curve, rtol=1e-11)
 
 
+def test_holding_time_law_and_stability_index_of_a_pattern():
+    sc = fa.Scenario(S, 1.0, fa.OfflineSchedule(pattern="1"), Jamming("0011"))
+    assert_allclose(sc.holding_time_law(3), [0.5, 0.25, 0.25, 0.0], atol=1e-15)  # tau 0, 0, 1, 2
+    assert sc.stability_index() == 0.0  # no loop of losses: tau is at most 2
+    # Low power on lam = 0.5, every other step jammed: over a period the packet is lost with
+    # probability 1 * 0.5, so rho(K0) = sqrt(0.5).
+    sc = fa.Scenario(S, 0.5, fa.OfflineSchedule(pattern="0"), Jamming("01"))
+    assert_allclose(sc.stability_index(), math.sqrt(0.5) * 1.44, rtol=1e-10)
+    assert sc.cost() == math.inf
+
+
 def test_the_phase_at_step_one_matters():
     lam = 0.7
     on_high = fa.Scenario(S, lam, fa.OfflineSchedule(pattern="10"), Jamming("10")).cost()

@@ -124,6 +124,7 @@ def test_constant_state_policies_are_the_built_in_attacks(channel, design):
         sc, ref = fa.Scenario(S, channel, design, pol), fa.Scenario(S, channel, design, attack)
         assert_allclose(sc.cost(), ref.cost(), rtol=1e-11)
         assert_allclose(sc.cost_curve(40).trace, ref.cost_curve(40).trace, rtol=1e-11)
+        assert_allclose(sc.holding_time_law(6), ref.holding_time_law(6), atol=1e-13)
         assert_allclose(sc.energy_per_step(3.0, 1.0), ref.energy_per_step(3.0, 1.0), rtol=1e-11)
         assert_allclose(tuple(sc.flag_rates()), tuple(ref.flag_rates()), rtol=1e-11, atol=1e-15)
         assert_allclose(sc.cost(), pol.cost(S, channel, design), rtol=1e-12)
