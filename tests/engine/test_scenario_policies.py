@@ -76,7 +76,7 @@ def test_cost_curve_starts_from_tau_zero():
     ]
     sc = fa.Scenario(S, lam, fa.HoldingTimePolicy([[1.0, 0.0]], PAPER_LEVELS))
     assert_allclose(sc.cost_curve(n).trace, want, rtol=1e-12)
-    assert sc.automaton().labels == ["tau=0 c=0"]
+    assert sc.automaton().labels == ["tau>=0 c=0"]  # tau_max = 0: one row for every tau
 
 
 @pytest.mark.parametrize("channel, csi", [(0.5, False), (GE, True)])

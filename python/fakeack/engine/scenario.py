@@ -204,7 +204,11 @@ class Scenario:
         """The engine under jamming: random jamming on the jammed channel; a pattern's automaton
         written out from phase 0 (:mod:`fakeack.engine.jammed`)."""
         if isinstance(jam, RandomJamming):
-            return _fakeack.Engine(*binding_args(jam.jammed_channel(ch), sched, None, self.max_states))
+            args = binding_args(jam.jammed_channel(ch), sched, None, self.max_states)
+            try:
+                return _fakeack.Engine(*args)
+            except ValueError as exc:  # no arrival from some state: the jammer's doing
+                raise ValueError(f"attack: {exc}") from None
         return self._given(jammed_chain(ch, sched, jam, self.max_states), "attack")
 
     @classmethod

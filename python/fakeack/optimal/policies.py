@@ -361,7 +361,7 @@ class HoldingTimePolicy:
         init = np.zeros(n_t * k)
         init[:k] = ch.stationary
         last = n_t - 1
-        labels = [f"tau{'>=' if t == last and t > 0 else '='}{t} c={c}" for t in range(n_t) for c in range(k)]
+        labels = [f"tau{'>=' if t == last else '='}{t} c={c}" for t in range(n_t) for c in range(k)]
         energy = np.asarray(p3 @ self.levels.energy, dtype=np.float64).ravel()
         return ScenarioChain(aut.K0, aut.K1, init, labels, aut.stationary, energy=energy)
 

@@ -257,5 +257,5 @@ def test_jammed_channels():
 def test_jamming_in_a_scenario_is_checked():
     with pytest.raises(ValueError, match=names("max_states")):
         fa.Scenario(S, GE, fa.OnlineDesign(2), Jamming("0" * 50 + "1"), max_states=100)
-    with pytest.raises(ValueError, match=names("channel")):
+    with pytest.raises(ValueError, match=names("attack")):
         fa.Scenario(S, 0.5, fa.OnlineDesign(2), RandomJamming(1.0))  # no packet ever arrives
