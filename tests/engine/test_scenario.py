@@ -141,7 +141,7 @@ class FakeEngine:
 @pytest.fixture
 def fake(monkeypatch):
     monkeypatch.setattr(_fakeack, "Engine", FakeEngine, raising=False)
-    monkeypatch.setattr("fakeack.engine.scenario.core_attack", lambda a, engine=False: a)
+    monkeypatch.setattr("fakeack.engine.binding.core_attack", lambda a, engine=False: a)
 
 
 def test_conversions_of_channel_schedule_and_attacks(fake):

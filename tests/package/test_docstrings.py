@@ -27,6 +27,7 @@ def test_classes_documented():
 
 DOCTEST_MODULES = [
     "attacks.automata",
+    "attacks.jamming",
     "attacks.chain",
     "attacks.kinds",
     "attacks.random",

@@ -1,5 +1,6 @@
-"""Attacks on the flag-ACKs: the attack objects, the attack chain and its stationary law, the cost
-under attack, the attacker threshold and the sensor's decision, and the families beyond the paper's."""
+"""Attacks on the flag-ACKs and jamming of the data channel: the attack objects, the attack chain
+and its stationary law, the cost under attack, the attacker threshold and the sensor's decision,
+and the families beyond the paper's."""
 
 from .automata import AttackerAutomaton, MimicryAttack, as_automaton, discard_forgeries
 from .chain import (
@@ -11,6 +12,7 @@ from .chain import (
     stationary_distribution,
     stationary_gth,
 )
+from .jamming import Jamming, JammingAttack, RandomJamming
 from .kinds import (
     Attack,
     AttackPattern,
@@ -44,6 +46,9 @@ __all__ = [
     "RandomBlocking",
     "FlagInjection",
     "Attack",
+    "Jamming",
+    "RandomJamming",
+    "JammingAttack",
     "as_attack",
     "num_states",
     "attack_chain",

@@ -17,23 +17,41 @@ engine"). An automaton built by hand, :math:`K_0` and :math:`K_1` only, is solve
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple, cast
+from typing import Any, cast
 
 import numpy as np
 import numpy.typing as npt
-import scipy.sparse as sp
 
 from .. import _fakeack
 from .._internal.html import key_values
 from .._internal.validate import as_int, as_real
-from ..attacks.automata import AttackerAutomaton, MimicryAttack, Transition, discard_forgeries
-from ..attacks.kinds import Attack, AttackLike, FlagInjection, as_attack, core_attack
+from ..attacks.automata import discard_forgeries
+from ..attacks.jamming import Jamming, JammingAttack, RandomJamming
 from ..attacks.rates import FlagRates
 from ..model.channels import Channel, as_channel
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
 from ..montecarlo.trace import TraceCurve
 from .automaton import automaton_args
+from .binding import (
+    AnyAttack,
+    AnySchedule,
+    EngineAutomaton,
+    ScenarioSchedule,
+    as_scenario_attack,
+    as_schedule,
+    binding_args,
+)
+from .chains import (
+    AttackPolicy,
+    ScenarioChain,
+    SchedulePolicy,
+    chain_flag_rates,
+    chain_mean,
+    has_chain,
+    restricted,
+)
+from .jammed import csr, jammed_chain
 
 __all__ = [
     "Scenario",
@@ -43,39 +61,6 @@ __all__ = [
 
 #: Largest automaton (states of E) a scenario builds unless told otherwise.
 DEFAULT_MAX_STATES = 1_000_000
-#: Longest offline period passed to the engine.
-MAX_OFFLINE_PERIOD = 10_000_000
-
-ScenarioAttack = Attack | MimicryAttack | AttackerAutomaton
-
-
-class EngineAutomaton(NamedTuple):
-    """The automaton E of a scenario: a label per state and the loss / arrival parts of K."""
-
-    labels: list[str]
-    """One readable label per state of E."""
-    K0: sp.csr_array
-    """Transitions on which the packet is lost (tau -> tau + 1)."""
-    K1: sp.csr_array
-    """Transitions on which the packet arrives (tau -> 0)."""
-
-
-def _schedule(schedule: object) -> OnlineDesign | OfflineSchedule:
-    if isinstance(schedule, (OnlineDesign, OfflineSchedule)):
-        return schedule
-    raise TypeError(
-        f"schedule must be a fakeack.OnlineDesign or fakeack.OfflineSchedule, got {type(schedule).__name__}"
-    )
-
-
-def _attack(attack: object) -> ScenarioAttack | None:
-    if isinstance(attack, (MimicryAttack, AttackerAutomaton)):
-        return attack
-    return as_attack(cast("AttackLike", attack))  # as_attack validates any object
-
-
-def _transitions(events: tuple[tuple[Transition, ...], ...]) -> list[list[Transition]]:
-    return [list(ev) for ev in events]
 
 
 class Scenario:
@@ -89,13 +74,24 @@ class Scenario:
     channel : Channel or float
         :class:`fakeack.BernoulliChannel`, :class:`fakeack.MarkovChannel`,
         :class:`fakeack.GilbertElliott`, or a float ``lam`` (the paper's channel).
-    schedule : OnlineDesign or OfflineSchedule
+    schedule : OnlineDesign, OfflineSchedule or sensor policy
         The ACK-based online schedule ``(z0, mu)``, or an offline one (by its ratio or any
-        pattern). An offline sensor ignores flag-ACKs, so it takes no attack.
-    attack : attack, MimicryAttack, AttackerAutomaton or None, optional
+        pattern). An offline sensor ignores flag-ACKs, so it takes no flag-ACK attack. Or a
+        sensor policy that writes itself out as the engine's automaton
+        (``scenario_chain(channel)``, :class:`fakeack.engine.chains.SchedulePolicy`), such as
+        :class:`fakeack.HoldingTimePolicy`: its L power levels carry their own energies and
+        arrival probabilities, the channel supplies only its state process ``P``, and it takes
+        no attack (it reads per-packet ACKs, not flag-ACKs).
+    attack : attack, MimicryAttack, AttackerAutomaton, attack policy, jamming or None, optional
         Any built-in attack (or a spelling ``as_attack`` reads, e.g. ``"1/5"``), including
         :class:`fakeack.FlagInjection` with ``min_gap``; :class:`fakeack.MimicryAttack`, whose
-        ``None`` channel and design are this scenario's; or any :class:`fakeack.AttackerAutomaton`.
+        ``None`` channel and design are this scenario's; any :class:`fakeack.AttackerAutomaton`;
+        an attacker that writes itself out as the engine's automaton
+        (``scenario_chain(channel, design)``, :class:`fakeack.engine.chains.AttackPolicy`), such
+        as :class:`fakeack.StatePolicy`, with an online schedule; or jamming of the data
+        channel, :class:`fakeack.Jamming` (step k jammed iff ``pattern[(k - 1) % L]``, phase 0
+        at step 1) or :class:`fakeack.RandomJamming`, with an online or offline schedule. A
+        jammed step is a loss the detector sees, so it also triggers flag-ACKs.
     max_states : int, keyword-only, optional
         Refuse (ValueError) an automaton E of more states than this, before allocating it
         (default 10^6).
@@ -109,6 +105,16 @@ class Scenario:
     system, channel, schedule, attack, max_states, authenticated
         The arguments, as read; ``channel``, ``schedule`` and ``attack`` are None for a scenario
         built by :meth:`from_automaton`.
+
+    Notes
+    -----
+    Every scenario's cost, :meth:`stability_index`, :meth:`holding_time_law`, :meth:`cost_curve`
+    and :meth:`automaton` are exact. The rates need the protocol: :meth:`high_power_rate` and
+    :meth:`flag_rates` raise ValueError for a sensor policy with L power levels (its
+    :meth:`energy_per_step` takes no energies: the levels carry them). Under a jamming pattern
+    the automaton is written out from phase 0 at step 1 and solved as one given by
+    :math:`K_0` and :math:`K_1`; when its long run depends on the phase (several closed
+    classes), every figure is the one from phase 0.
 
     Raises
     ------
@@ -130,7 +136,7 @@ class Scenario:
         self,
         system: LinearSystem,
         channel: Channel | float,
-        schedule: OnlineDesign | OfflineSchedule,
+        schedule: OnlineDesign | OfflineSchedule | SchedulePolicy,
         attack: object = None,
         *,
         max_states: int = DEFAULT_MAX_STATES,
@@ -138,18 +144,72 @@ class Scenario:
     ) -> None:
         self._core_system = compiled(system)
         self.system = system
-        ch, sched = as_channel(channel, "channel"), _schedule(schedule)
+        ch, sched = as_channel(channel, "channel"), as_schedule(schedule)
         self.channel: Channel | None = ch
-        self.schedule: OnlineDesign | OfflineSchedule | None = sched
+        self.schedule: AnySchedule | None = sched
         self.authenticated = bool(authenticated)
+        self.max_states = as_int("max_states", max_states, minimum=1)
+        self._chain: ScenarioChain | None = None
+        if isinstance(attack, (Jamming, RandomJamming)):
+            self.attack: AnyAttack | None = attack
+            if not isinstance(sched, (OnlineDesign, OfflineSchedule)):
+                raise TypeError(
+                    "attack: jamming applies to an OnlineDesign or OfflineSchedule; a sensor policy's "
+                    "levels carry their own arrival probabilities (scale them by the unjammed share)"
+                )
+            self._engine = self._jammed(ch, sched, attack)
+            return
+        if has_chain(sched):
+            if attack is not None:
+                raise ValueError("attack: a sensor policy reads per-packet ACKs and ignores flag-ACKs")
+            self.attack = None
+            self._engine = self._given(cast("SchedulePolicy", sched).scenario_chain(ch), "schedule")
+            return
+        assert isinstance(sched, (OnlineDesign, OfflineSchedule))
+        if has_chain(attack):
+            if self.authenticated:
+                raise ValueError(
+                    "authenticated: applies to the built-in attacks and automata; give the attack "
+                    "policy without its forging instead"
+                )
+            if not isinstance(sched, OnlineDesign):
+                raise ValueError("attack: an offline schedule ignores flag-ACKs, so an attack has no effect")
+            self.attack = cast("AttackPolicy", attack)
+            self._engine = self._given(self.attack.scenario_chain(ch, sched), "attack")
+            return
         if self.authenticated and attack is not None:
             design = sched if isinstance(sched, OnlineDesign) else None
             attack = discard_forgeries(attack, channel=ch, design=design)
-        self.attack: ScenarioAttack | None = _attack(attack)
-        self.max_states = as_int("max_states", max_states, minimum=1)
+        self.attack = as_scenario_attack(attack)
         if isinstance(sched, OfflineSchedule) and self.attack is not None:
             raise ValueError("attack: an offline schedule ignores flag-ACKs, so an attack has no effect")
-        self._engine = _fakeack.Engine(*self._binding_args(ch, sched))
+        self._engine = _fakeack.Engine(*binding_args(ch, sched, self.attack, self.max_states))
+
+    def _given(self, chain: object, role: str) -> Any:
+        """The engine of a policy's own automaton (:mod:`fakeack.engine.chains`)."""
+        if not isinstance(chain, ScenarioChain):
+            raise TypeError(
+                f"{role}: scenario_chain must return a fakeack.engine.chains.ScenarioChain, "
+                f"got {type(chain).__name__}"
+            )
+        self._chain = restricted(chain, role)
+        c = self._chain
+        args = automaton_args(c.K0, c.K1, c.init, c.labels, self.max_states)
+        try:
+            return _fakeack.Engine.from_automaton(*args)
+        except ValueError as exc:  # no arrival from some state: the policy's doing
+            raise ValueError(f"{role}: {exc}") from None
+
+    def _jammed(self, ch: Channel, sched: ScenarioSchedule, jam: JammingAttack) -> Any:
+        """The engine under jamming: random jamming on the jammed channel; a pattern's automaton
+        written out from phase 0 (:mod:`fakeack.engine.jammed`)."""
+        if isinstance(jam, RandomJamming):
+            args = binding_args(jam.jammed_channel(ch), sched, None, self.max_states)
+            try:
+                return _fakeack.Engine(*args)
+            except ValueError as exc:  # no arrival from some state: the jammer's doing
+                raise ValueError(f"attack: {exc}") from None
+        return self._given(jammed_chain(ch, sched, jam, self.max_states), "attack")
 
     @classmethod
     def from_automaton(
@@ -227,6 +287,7 @@ class Scenario:
         self.system = system
         self.channel, self.schedule, self.attack = None, None, None
         self.authenticated = False
+        self._chain = None
         args = automaton_args(K0, K1, init, labels, max_states)
         self.max_states = args[-1]
         self._engine = _fakeack.Engine.from_automaton(*args)
@@ -234,41 +295,22 @@ class Scenario:
 
     # --- conversion ----------------------------------------------------------------------------
 
-    def _binding_args(self, ch: Channel, schedule: OnlineDesign | OfflineSchedule) -> tuple[Any, ...]:
-        P, low, high = ch.P.tolist(), ch.low.tolist(), ch.high.tolist()
-        offline: list[bool] | None = None
-        if isinstance(schedule, OfflineSchedule):
-            r = schedule.ratio
-            if r is not None and r.denominator > MAX_OFFLINE_PERIOD:
-                raise ValueError(
-                    f"schedule: an offline period of {r.denominator} steps exceeds {MAX_OFFLINE_PERIOD}"
-                )
-            offline = [bool(x) for x in schedule.pattern]
-            z0, mu = 1, 1.0
-        else:
-            z0, mu = schedule.z0, schedule.mu
-        att, min_gap, mimicry, automaton = None, 1, None, None
-        a = self.attack
-        if isinstance(a, MimicryAttack):
-            vch = a.channel if a.channel is not None else ch
-            assert isinstance(schedule, OnlineDesign)  # offline scenarios take no attack
-            design = a.design if a.design is not None else schedule
-            mimicry = (vch.P.tolist(), vch.low.tolist(), vch.high.tolist(), design.z0, design.mu)
-        elif isinstance(a, AttackerAutomaton):
-            automaton = (_transitions(a.flag), _transitions(a.quiet), a.start)
-        elif a is not None:
-            att = core_attack(a, engine=True)
-            if isinstance(a, FlagInjection):
-                min_gap = a.min_gap
-        return (P, low, high, z0, mu, offline, att, min_gap, mimicry, automaton, self.max_states)
-
-    def _protocol(self, what: str) -> None:
-        """Refuses a quantity a scenario built from K0 and K1 does not know."""
+    def _rate_source(self, what: str) -> Any:
+        """The engine or the policy's chain that knows the power and flag-ACK rates; ValueError
+        saying why when the scenario does not know them."""
         if self.channel is None:
             raise ValueError(
                 f"automaton: {what} needs a channel and a schedule; an automaton given as K0 and K1 "
                 "carries no power or flag-ACK information"
             )
+        if self._chain is not None:
+            return self._chain
+        return self._engine
+
+    def _policy(self) -> str:
+        """``"schedule: HoldingTimePolicy"``: the role and the type of the policy that gave the chain."""
+        role, obj = ("attack", self.attack) if self.attack is not None else ("schedule", self.schedule)
+        return f"{role}: {type(obj).__name__}"
 
     # --- results -------------------------------------------------------------------------------
 
@@ -304,26 +346,50 @@ class Scenario:
         Raises
         ------
         ValueError
-            For a scenario built by :meth:`from_automaton`, which carries no power information.
+            For a scenario built by :meth:`from_automaton`, which carries no power information;
+            for a sensor policy of L power levels (not a high and a low one: see
+            :meth:`energy_per_step`).
         """
-        self._protocol("high_power_rate")
-        return float(self._engine.high_power_rate())
+        src = self._rate_source("high_power_rate")
+        if isinstance(src, ScenarioChain):
+            if src.high is None:
+                raise ValueError(
+                    f"{self._policy()} has power levels, not a high and a low one, so no high-power "
+                    "rate; energy_per_step() gives the energy its levels spend"
+                )
+            return chain_mean(src, src.high)
+        return float(src.high_power_rate())
 
-    def energy_per_step(self, Delta: float, delta: float) -> float:
+    def energy_per_step(self, Delta: float | None = None, delta: float | None = None) -> float:
         r"""Long-run energy per step, :math:`\delta + (\Delta - \delta) f` with f :meth:`high_power_rate`.
+
+        For a sensor policy with power levels (:class:`fakeack.HoldingTimePolicy`) the levels
+        carry the energies: :math:`\sum_e \pi_e \sum_l p(l \mid e)\,e_l`, called without
+        arguments.
 
         Parameters
         ----------
         Delta, delta : float
-            Energy of a high- and a low-power transmission, :math:`\Delta > \delta \ge 0`.
+            Energy of a high- and a low-power transmission, :math:`\Delta > \delta \ge 0`
+            (required, except for a sensor policy with power levels, which refuses them).
 
         Raises
         ------
+        TypeError
+            ``Delta`` and ``delta`` missing for a two-level schedule, or given for a policy's levels.
         ValueError
-            For invalid energies, and for a scenario built by :meth:`from_automaton`, which
-            carries no power information.
+            For invalid energies, and where :meth:`high_power_rate` raises.
         """
-        self._protocol("energy_per_step")
+        src = self._rate_source("energy_per_step")
+        if isinstance(src, ScenarioChain) and src.energy is not None:
+            if Delta is not None or delta is not None:
+                raise TypeError(
+                    "Delta and delta: the schedule's power levels carry their energies; call "
+                    "energy_per_step() without them"
+                )
+            return chain_mean(src, src.energy)
+        if Delta is None or delta is None:
+            raise TypeError("Delta and delta are required: the energies of a high- and a low-power packet")
         hi, lo = as_real("Delta", Delta), as_real("delta", delta)
         if lo < 0:
             raise ValueError(f"delta must be non-negative, got {lo}")
@@ -344,10 +410,15 @@ class Scenario:
         ------
         ValueError
             For a scenario built by :meth:`from_automaton`, which carries no flag-ACK
-            information.
+            information; for a sensor policy on per-packet ACKs, which has no flag-ACKs.
         """
-        self._protocol("flag_rates")
-        sent, delivered, forged = self._engine.flag_rates()
+        src = self._rate_source("flag_rates")
+        if isinstance(src, ScenarioChain):
+            rates = chain_flag_rates(src)
+            if rates is None:
+                raise ValueError(f"{self._policy()} gives no flag-ACKs (its sensor reads per-packet ACKs)")
+            return rates
+        sent, delivered, forged = src.flag_rates()
         return FlagRates(float(sent), float(delivered), float(forged))
 
     def holding_time_law(self, n: int) -> npt.NDArray[np.float64]:
@@ -370,8 +441,10 @@ class Scenario:
         r""":math:`\mathbb E\,\mathrm{Tr}\,P_k` and :math:`J_k` for k = 1..horizon, exactly.
 
         From the paper's initial condition (high power at k = 1, memory all ones, the attacker in
-        its start state, :math:`c_1` stationary), or from ``init`` for :meth:`from_automaton`;
-        :math:`J_k` tends to :meth:`cost`.
+        its start state, :math:`c_1` stationary; a jamming pattern at phase 0), or from ``init``
+        for :meth:`from_automaton` and from a policy's own initial law (a
+        :class:`fakeack.HoldingTimePolicy` sees :math:`\tau_0 = 0` at step 1); :math:`J_k` tends
+        to :meth:`cost`.
 
         Parameters
         ----------
@@ -390,12 +463,7 @@ class Scenario:
         """
         labels, k0, k1 = self._engine.automaton()
         n = len(labels)
-
-        def csr(coo: tuple[Any, Any, Any]) -> sp.csr_array:
-            rows, cols, vals = (np.asarray(x) for x in coo)
-            return sp.csr_array((vals.astype(np.float64), (rows, cols)), shape=(n, n))
-
-        return EngineAutomaton(list(labels), csr(k0), csr(k1))
+        return EngineAutomaton(list(labels), csr(k0, n), csr(k1, n))
 
     # --- display -------------------------------------------------------------------------------
 
@@ -418,6 +486,9 @@ class Scenario:
         j = self.cost()
         items += [("states of E", self.n_states), ("J", j), ("stability index", self.stability_index())]
         if self.channel is not None:
-            items.append(("high-power rate", self.high_power_rate()))
+            try:
+                items.append(("high-power rate", self.high_power_rate()))
+            except ValueError:
+                pass  # a policy of power levels, or a phase-dependent jammed protocol
         note = "" if math.isfinite(j) else "J is infinite: rho(K0) rho(A)^2 >= 1."
         return key_values("Scenario", items, note)

@@ -35,7 +35,8 @@ from .._internal.validate import as_int
 from ..model.channels import GilbertElliott
 from ..model.schedules import OfflineSchedule, OnlineDesign
 from ..model.system import LinearSystem, compiled
-from .scenario import DEFAULT_MAX_STATES, Scenario, ScenarioAttack
+from .binding import AnyAttack, AnySchedule
+from .scenario import DEFAULT_MAX_STATES, Scenario
 
 __all__ = [
     "StabilityRegion",
@@ -136,9 +137,9 @@ class StabilityRegion:
     r"""``(len(p), len(q))``: J (:meth:`fakeack.Scenario.cost`), ``inf`` where the index is at least 1.
     Also masked where :math:`\rho(K_0) = 1` and :math:`\rho(A) < 1` (J is then the limit of a
     holding time that grows without end, which the engine does not compute)."""
-    schedule: OnlineDesign | OfflineSchedule
+    schedule: AnySchedule
     """The sensor's schedule."""
-    attack: ScenarioAttack | None
+    attack: AnyAttack | None
     """The attack (``None``: none)."""
     lam_good: float
     lam_bad: float

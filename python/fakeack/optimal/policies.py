@@ -23,6 +23,7 @@ import scipy.sparse.linalg as spla
 
 from .._internal.types import FloatArray
 from .._internal.validate import as_real
+from ..engine.chains import ScenarioChain
 from ..model.channels import Channel, as_channel, gth_stationary
 
 __all__ = [
@@ -320,6 +321,49 @@ class HoldingTimePolicy:
             pi = stationary_law(sp.csr_array(K0 + K1))
         energy = float(pi @ (p3 @ self.levels.energy).ravel())
         return PolicyAutomaton(K0, K1, pi, energy)
+
+    def scenario_chain(self, channel: Channel | float) -> ScenarioChain:
+        r"""This sensor as a :class:`fakeack.Scenario` schedule: :meth:`automaton` with the state
+        before step 1, :math:`(\tau_0 = 0, c_1)`, :math:`c_1` stationary.
+
+        ``fa.Scenario(system, channel, policy)`` solves it by the coupled Stein equations
+        :math:`Z_e = \bar P + (w_e - 1) Q + \sum_f K_0[e, f] A Z_f A'`; its
+        ``energy_per_step()`` is :math:`\sum_{t,c} \pi(t, c) \sum_l p[t, c, l]\, e_l` and
+        ``cost_curve`` starts from :math:`\tau_0 = 0`. The policy has L power levels, not a
+        high and a low one, and reads per-packet ACKs: the scenario's ``high_power_rate`` and
+        ``flag_rates`` raise ValueError.
+
+        Parameters
+        ----------
+        channel : Channel or float
+            The channel whose state process drives per-state arrivals.
+
+        Returns
+        -------
+        fakeack.engine.chains.ScenarioChain
+            States ``t * K + c`` labelled ``tau=t c=c`` (``tau>=T`` for the last row).
+
+        Examples
+        --------
+        >>> import fakeack as fa
+        >>> s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+        >>> pol = HoldingTimePolicy([[1, 0], [1, 0], [0, 1]], [(1.0, 0.5), (3.0, 1.0)])
+        >>> sc = fa.Scenario(s, 0.5, pol)   # the online schedule z0 = 2, mu = 1 (Theorem 4.5)
+        >>> bool(abs(sc.cost() - fa.Scenario(s, 0.5, fa.OnlineDesign(2)).cost()) < 1e-12)
+        True
+        >>> round(sc.energy_per_step(), 12)
+        1.285714285714
+        """
+        ch = as_channel(channel, "channel")
+        aut = self.automaton(ch)
+        p3, _, _ = self._tables(ch)
+        n_t, k, _ = p3.shape
+        init = np.zeros(n_t * k)
+        init[:k] = ch.stationary
+        last = n_t - 1
+        labels = [f"tau{'>=' if t == last else '='}{t} c={c}" for t in range(n_t) for c in range(k)]
+        energy = np.asarray(p3 @ self.levels.energy, dtype=np.float64).ravel()
+        return ScenarioChain(aut.K0, aut.K1, init, labels, aut.stationary, energy=energy)
 
     def __repr__(self) -> str:
         return f"HoldingTimePolicy(<p of shape {self.p.shape}>, levels={len(self.levels.energy)})"

@@ -27,6 +27,7 @@ from scipy.sparse.csgraph import breadth_first_order
 
 from .._internal.types import FloatArray
 from ..attacks.automata import AttackerAutomaton, Transition
+from ..engine.chains import ScenarioChain
 from ..engine.scenario import Scenario
 from ..model.channels import Channel, ChannelLike, as_channel
 from ..model.schedules import OnlineDesign
@@ -265,6 +266,83 @@ class StatePolicy:
         received = (pi * hi4).sum(axis=(0, 1, 2))
         received = received / received.sum() if received.sum() > 0.0 else received
         return StateAutomaton(K0, K1, pi.ravel(), blocked, forged, closed, received)
+
+    def scenario_chain(self, channel: ChannelLike, design: OnlineDesign) -> ScenarioChain:
+        r"""This attacker as a :class:`fakeack.Scenario` attack: :meth:`automaton` and a start state
+        for the paper's initial condition.
+
+        The start state is the end of step 0: a flag-ACK reached the sensor (high power at step
+        1, the detector's count at 0, d = 0), :math:`c_0` stationary; step 1 is then one step
+        of ``protocol_steps`` at high power, without a decision of the attacker.
+        ``fa.Scenario(system, channel, design, policy)`` solves the chain by the coupled Stein
+        equations :math:`Z_e = \bar P + (w_e - 1) Q + \sum_f K_0[e, f] A Z_f A'`; its
+        ``high_power_rate`` is :math:`\sum \pi(t, e, d)\,\Pr[\text{high} \mid t, e, d]` and
+        its ``flag_rates`` count the genuine flag-ACKs (the flag slots), the delivered ones and
+        the forged ones (delivered on a quiet step) per step.
+
+        Parameters
+        ----------
+        channel : Channel or float
+            The packet channel.
+        design : OnlineDesign
+            The remote detector's (z0, mu).
+
+        Returns
+        -------
+        fakeack.engine.chains.ScenarioChain
+            The states of :meth:`automaton`, then the start state.
+
+        Examples
+        --------
+        >>> import fakeack as fa
+        >>> s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
+        >>> sc = fa.Scenario(s, 0.5, fa.OnlineDesign(2), StatePolicy([0.5]))
+        >>> ref = fa.Scenario(s, 0.5, fa.OnlineDesign(2), fa.RandomBlocking(0.5))
+        >>> bool(abs(sc.cost() - ref.cost()) < 1e-12)
+        True
+        """
+        ch = as_channel(channel, "channel")
+        aut = self.automaton(ch, design)
+        steps = protocol_steps(ch, design)
+        hi = self.high_probability(ch, design)
+        n_t, E, G = hi.shape
+        n, S = n_t * E * G, steps.slots
+        flag_slot = (np.arange(E) % S == S - 1)[None, :, None]
+        from_flag = np.arange(steps.n_states) * S + S - 1  # (c, flag): the count restarts
+        law = np.asarray(ch.stationary)
+        start0 = np.zeros(n + 1)
+        start1 = np.zeros(n + 1)
+        t1 = min(1, n_t - 1)
+        start0[(t1 * E + np.arange(E)) * G] = law @ steps.loss[1][from_flag]
+        start1[np.arange(E) * G] = law @ steps.arrival[1][from_flag]
+
+        def grow(m: sp.csr_array, row: FloatArray) -> sp.csr_array:
+            edge = sp.csr_array((n, 1))
+            return sp.csr_array(sp.vstack([sp.hstack([m, edge]), sp.csr_array(row[None, :])], format="csr"))
+
+        init = np.zeros(n + 1)
+        init[n] = 1.0
+        sent = np.broadcast_to(flag_slot, hi.shape).astype(np.float64).ravel()
+        high = hi.ravel()
+        labels = [
+            f"t={t} c={e // S} {'flag' if e % S == S - 1 else f'n={e % S}'} d={d + 1}"
+            for t in range(n_t)
+            for e in range(E)
+            for d in range(G)
+        ]
+
+        def pad(v: FloatArray, last: float) -> FloatArray:
+            return np.append(np.asarray(v, dtype=np.float64), last)
+
+        return ScenarioChain(
+            grow(aut.K0, start0),
+            grow(aut.K1, start1),
+            init,
+            [*labels, "start"],
+            pad(aut.stationary, 0.0),
+            high=pad(high, 1.0),
+            flags=(pad(sent, 0.0), pad(high, 1.0), pad(high * (1.0 - sent), 0.0)),
+        )
 
     def cost(self, system: LinearSystem, channel: ChannelLike, design: OnlineDesign) -> float:
         """The exact long-run cost J under this attacker, by the engine on :meth:`automaton`

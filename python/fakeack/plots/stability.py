@@ -37,7 +37,8 @@ def _title(region: StabilityRegion) -> str:
     if isinstance(region.schedule, OfflineSchedule):
         return str(region.schedule)
     att = region.attack
-    return f"{region.schedule}, " + ("no attack" if att is None else f"attack {att.label}")
+    label = None if att is None else getattr(att, "label", str(att))  # policies have no label
+    return f"{region.schedule}, " + ("no attack" if att is None else f"attack {label}")
 
 
 def _panel(axis: Axes, region: StabilityRegion, title: str | None) -> Any:
