@@ -46,6 +46,7 @@ DEFAULT_ALTERNATIVE = RandomBlocking(0.2)
 RESOLUTION = 8.0
 
 _TESTS: dict[tuple[Any, ...], LikelihoodRatioTest] = {}
+_LAWS: dict[tuple[Any, ...], LikelihoodRatioLaw] = {}
 
 
 def _design(z0: object, mu: object) -> OnlineDesign:
@@ -202,8 +203,32 @@ class LikelihoodRatioTest:
         if attack is None and true_channel is None:
             return self.alpha_reached
         truth = self.channel if true_channel is None else as_channel(true_channel, "true_channel")
-        process = flag_process(truth, self.design, _played(attack))
-        return law_of(process, self.increments, self.n_steps, RESOLUTION).tail(self.critical)
+        key = (self.channel, self.design, _alternative_key(self.alternative), self.n_steps, truth)
+        law = _cached_law(key, _played(attack), self.increments, RESOLUTION)
+        return law.tail(self.critical)
+
+
+def _alternative_key(alt: object) -> object:
+    return tuple(alt.tolist()) if isinstance(alt, np.ndarray) else alt
+
+
+def _cached_law(
+    key: tuple[Any, ...], attack: object, inc: CusumIncrements, resolution: float
+) -> LikelihoodRatioLaw:
+    """The statistic's law under ``attack`` on the window, channel and design of ``key`` (its
+    last entry the true channel), kept for the tests of other levels on the same window: the law
+    does not depend on alpha, and a game asks for it at every alpha."""
+    full = (*key, resolution, attack)
+    try:
+        law = _LAWS.get(full)
+    except TypeError:  # an attack that cannot be hashed is computed each time
+        return law_of(flag_process(key[-1], key[1], attack), inc, key[3], resolution)
+    if law is None:
+        law = law_of(flag_process(key[-1], key[1], attack), inc, key[3], resolution)
+        if len(_LAWS) > 256:
+            _LAWS.clear()
+        _LAWS[full] = law
+    return law
 
 
 def lr_tables(test: LikelihoodRatioTest) -> tuple[list[float], list[float], list[float]]:
@@ -280,7 +305,7 @@ def likelihood_ratio_test(
     level = as_probability("alpha", alpha)
     cusum = CusumTest(alternative, 1.0)
     alt = cusum.alternative
-    key = (ch, design, n, level, tuple(alt.tolist()) if isinstance(alt, np.ndarray) else alt)
+    key = (ch, design, n, level, _alternative_key(alt))
     if key in _TESTS:
         return _TESTS[key]
     inc = cusum.increments(ch, design)
@@ -290,10 +315,10 @@ def likelihood_ratio_test(
             f"alternative: {alt} has the attack-free gap law; the statistic is the support check "
             "alone (test='support')"
         )
-    process = flag_process(ch, design)
-    null = law_of(process, inc, n, RESOLUTION)
+    laws = (ch, design, _alternative_key(alt), n, ch)
+    null = _cached_law(laws, None, inc, RESOLUTION)
     critical, reached = _critical(null, level)
-    coarse, _ = _critical(law_of(process, inc, n, RESOLUTION / 2), level)
+    coarse, _ = _critical(_cached_law(laws, None, inc, RESOLUTION / 2), level)
     test = LikelihoodRatioTest(
         alt, ch, design, n, level, critical, reached, abs(coarse - critical), inc, null
     )
