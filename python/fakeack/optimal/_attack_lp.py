@@ -22,12 +22,13 @@ from ..model.system import LinearSystem
 from .power import LP_TOL, MASS_TOL, PROB_TOL
 from .state_policy import StatePolicy, Steps
 
-__all__ = ["LpSolution", "solve", "attack_free_gaps", "scale", "GAP_TAIL"]
+__all__ = ["LpSolution", "solve", "attack_free_gaps", "hazards", "scale", "GAP_TAIL"]
 
 #: The gap-law constraint stops where the attack-free tail of the gaps falls below this (gaps
-#: beyond share one row): the law's entries there fall below the smallest matrix entry HiGHS
-#: keeps (1e-9), and a law row whose coefficient is dropped makes the LP fail to solve.
-GAP_TAIL = 1e-8
+#: beyond share one row). The constraint is imposed on the hazards, whose coefficients are of
+#: order 1 however small the tail: the law's own entries would fall below the smallest matrix
+#: entry HiGHS keeps (1e-9) and, in rows spanning 1 to 1e-9, make its bases ill-conditioned.
+GAP_TAIL = 1e-12
 #: Rows of the LP's solution below this share of its value are taken as unvisited.
 SHARE_TOL = 1e-14
 #: Longest gap law computed.
@@ -74,6 +75,15 @@ def attack_free_gaps(steps: Steps, tail: float = GAP_TAIL) -> tuple[FloatArray, 
     else:
         raise ValueError(f"design: the attack-free gaps have a tail above {tail} beyond {MAX_GAP} steps")
     return np.array(out), float(pi[flags].sum())
+
+
+def hazards(law: FloatArray) -> FloatArray:
+    r"""The hazards of a gap law ``law`` (as :func:`attack_free_gaps` gives it):
+    :math:`h(l) = \Pr[\text{gap} = l \mid \text{gap} \ge l]`, entry l - 1 (1 for the last
+    entry, every gap >= G; 0 where the law is 0). The tails are summed from the smallest
+    entries up, so each hazard keeps its relative precision where the tail is tiny."""
+    tail = np.cumsum(law[::-1])[::-1]
+    return np.divide(law, tail, out=np.zeros_like(law), where=tail > 0.0)
 
 
 def scale(g: float, rho: float) -> float:
@@ -132,6 +142,7 @@ def solve(
     ib, if_ = block_of(n_t), block_of(n_t)
     iarr = block_of(n_t, K, G) if G > 1 else None
     ih = block_of(n_t, G) if gaps is not None else None
+    ireach = block_of(G) if gaps is not None else None
     rows: list[npt.NDArray[Any]] = []
     cols: list[npt.NDArray[Any]] = []
     vals: list[npt.NDArray[Any]] = []
@@ -189,19 +200,27 @@ def solve(
         cumulative(r, iv)
         put(r[:, None, None], iy[:, states][..., bad], -(1.0 - share))
         put(r[:, None, None], iy[:, states][..., good], share)
-    if ih is not None and gaps is not None:
-        # The received gaps' law: deliveries at gap d are law[d] of all deliveries, and these come
-        # at the attack-free rate (a law of mean m is received once every m steps in the long run;
-        # without it, delivering nothing would meet the law vacuously).
+    if ih is not None and ireach is not None and gaps is not None:
+        # The received gaps' law as hazards: of the gaps that reach length l + 1, the share
+        # delivered there is the attack-free h(l + 1) = P[gap = l + 1 | gap > l], and gaps start at
+        # the attack-free rate (a law of mean m is received once every m steps in the long run;
+        # without it, delivering nothing would meet the law vacuously). With R(l) the rate of
+        # gaps that reach l + 1 (the deliveries at l and beyond), this is the marginal law with
+        # coefficients of order 1 (GAP_TAIL).
         law, rate = gaps
+        hazard = hazards(law)
         hrow = new_rows(n_t, G)
         cumulative(hrow, ih)
         put(hrow[:, None, :], iy[:, :, :, 1], -1.0)
-        lrow = new_rows(G - 1)  # the last gap's row follows from the others and the law's sum 1
-        put(lrow, ih[0][:-1], 1.0)
-        put(lrow[:, None], ih[0][None, :], -law[:-1, None])
+        crow = new_rows(G)  # R(l) - deliveries at l - R(l + 1) = 0
+        put(crow, ireach, 1.0)
+        put(crow, ih[0], -1.0)
+        put(crow[:-1], ireach[1:], -1.0)
+        zrow = new_rows(G - 1)  # deliveries at l - h(l + 1) R(l) = 0; the last follows
+        put(zrow, ih[0][:-1], 1.0)
+        put(zrow, ireach[:-1], -hazard[:-1])
         rrow = new_rows(1)
-        put(rrow, ih[0][None, :], 1.0)
+        put(rrow, ireach[:1], 1.0)
         b_eq_parts.append((rrow, np.array([rate])))
     n_eq, nvar = nrow[0], counter[0]
     ij = (np.concatenate(rows).astype(np.intp), np.concatenate(cols).astype(np.intp))
@@ -241,17 +260,22 @@ def solve(
             "presolve": G > 1,
         },
     )
-    if res.status == 2 or "primal_status is Infeasible" in str(res.message):  # as presolve words it
+    if res.status == 2:
         raise ValueError(
-            "forge_budget: the stealth program is infeasible to the solver's tolerance: within these budgets "
-            "the sensor must receive flag-ACKs at the attack-free rate, which leaves at most the attack-free "
-            "policy (J_on); raise forge_budget or beta"
+            "forge_budget: HiGHS finds the stealth program infeasible: within these budgets the sensor must "
+            "receive flag-ACKs at the attack-free rate, which leaves at most the attack-free policy (J_on); "
+            "raise forge_budget or beta"
         )
     if res.status != 0:
         raise ConvergenceError(f"the worst-attack LP (tau_max = {T}) was not solved: {res.message}")
     assert res.x is not None and res.fun is not None  # status 0: solved
     j_lp = float(-res.fun)
     y = np.clip(res.x[:ny].reshape(n_t, E, G, 2), 0.0, None)
+    if gaps is not None:
+        # Under the gap law the mass at d is the attack-free rate times P[gap > d], down to
+        # GAP_TAIL: the policy's ratios are read on masses relative to that, not on absolute
+        # masses (which would leave the deep gaps unvisited and their law unmet).
+        y = y / np.cumsum(gaps[0][::-1])[::-1][None, None, :, None]
     # Rows whose share of the objective is below the solver's resolution count as unvisited.
     share_ok = y.sum(axis=3) * unit[:, None, None] > SHARE_TOL * j_lp
     policy = _policy(np.where(share_ok[..., None], y, 0.0), K, S)
