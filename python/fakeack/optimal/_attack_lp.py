@@ -149,7 +149,8 @@ def solve(
     # GAP_TAIL: columns at d are scaled by that tail (floored at D_FLOOR, keeping every matrix
     # entry above HiGHS's 1e-9) and so are the rows that balance d, so that the solver's
     # absolute tolerances (1e-10, on bounds too) hold relative to the masses the law asks for.
-    dscale = np.maximum(np.cumsum(gaps[0][::-1])[::-1], D_FLOOR) if gaps is not None else np.ones(G)
+    gap_tail = np.cumsum(gaps[0][::-1])[::-1] if gaps is not None else np.ones(G)  # P[gap > d]
+    dscale = np.maximum(gap_tail, D_FLOOR)
     colscale: list[tuple[npt.NDArray[np.intp], npt.NDArray[Any]]] = [(iy, dscale[None, None, :, None])]
     rowscale: list[tuple[npt.NDArray[np.intp], npt.NDArray[Any]]] = []
     rows: list[npt.NDArray[Any]] = []
@@ -286,9 +287,8 @@ def solve(
     )
     if res.status == 2:
         raise ValueError(
-            "forge_budget: HiGHS finds the stealth program infeasible: within these budgets the sensor must "
-            "receive flag-ACKs at the attack-free rate, which leaves at most the attack-free policy (J_on); "
-            "raise forge_budget or beta"
+            "forge_budget: HiGHS finds the stealth program infeasible: no attacker within these budgets "
+            "delivers flag-ACKs with the attack-free gaps at the attack-free rate; raise forge_budget or beta"
         )
     if res.status != 0:
         raise ConvergenceError(f"the worst-attack LP (tau_max = {T}) was not solved: {res.message}")
@@ -297,8 +297,7 @@ def solve(
     # The policy's ratios are read on masses relative to the attack-free tail at d (absolute
     # masses would leave the deep gaps unvisited and their law unmet).
     y = np.clip(res.x[:ny].reshape(n_t, E, G, 2), 0.0, None)
-    if gaps is not None:
-        y = y * (dscale / np.cumsum(gaps[0][::-1])[::-1])[None, None, :, None]
+    y = y * (dscale / gap_tail)[None, None, :, None]
     # Rows whose share of the objective is below the solver's resolution count as unvisited.
     share_ok = y.sum(axis=3) * unit[:, None, None] > SHARE_TOL * j_lp
     policy = _policy(np.where(share_ok[..., None], y, 0.0), K, S)
