@@ -287,7 +287,7 @@ def test_gap_law_randomised_memory():
     law = attack_free_palm_law(0.5, design, w.received_gaps.size)
     assert law[-1] < 1e-12 <= law[-2] + law[-1]
     got = received_palm_law(w.policy, 0.5, design, law.size)
-    np.testing.assert_allclose(got, law, rtol=0, atol=1e-13)
+    np.testing.assert_allclose(got, law, rtol=0, atol=1e-9)  # HiGHS: 1e-10 on masses of rate 0.1
 
 
 @pytest.mark.parametrize("design", [PAPER, fa.OnlineDesign(2, 0.5), fa.OnlineDesign(3, 0.6)])
