@@ -126,7 +126,9 @@ def worst_attack(
     policy is read off the masses at gap d relative to the attack-free tail
     :math:`\Pr[\text{gap} > d]` (the mass the law puts there), down to the truncation; the
     solver's tolerances (1e-10) are absolute, so the received law is met to about 1e-9 in the
-    worst case (within 1e-15 on the paper's example at T = 200).
+    worst case (within 1e-15 on the paper's example at T = 200). Where HiGHS fails on the
+    program, it is solved again with the columns and rows at gap d scaled by that tail (the
+    same program, on which HiGHS's factorisations take other paths).
 
     **The tail bound, on the safe side.** For a maximisation the truncation must not lower the
     LP's value: the aggregated state t = T is costed at an upper bound of what every
