@@ -2,7 +2,9 @@
 (HiGHS) plus the exact cost of its policy, on the paper's system at tau_max = 200 and with the
 automatic truncation.
 
-    python benches/optimal.py [--repeat 7]
+    python benches/optimal.py [--repeat 7] [--slow]
+
+``--slow`` adds the gap-law program with a randomised memory (mu = 0.5, minutes per call), run once.
 
 Prints wall and CPU seconds per call (medians over the repeats) and the load average, which
 matters on a shared machine.
@@ -68,6 +70,17 @@ ATTACKS = [
     ),
 ]
 
+#: Cases of minutes per call, run once with ``--slow``.
+SLOW_ATTACKS = [
+    (
+        "worst attack, paper mu=0.5, stealth=gap-law, beta=1, forging 1, tau_max=200",
+        0.5,
+        fa.OnlineDesign(2, 0.5),
+        1.0,
+        {"tau_max": 200, "forge_budget": 1.0, "stealth": "gap-law"},
+    ),
+]
+
 
 def _timed(name: str, repeat: int, call: object) -> None:
     walls, cpus = [], []
@@ -87,6 +100,7 @@ def _timed(name: str, repeat: int, call: object) -> None:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=7)
+    parser.add_argument("--slow", action="store_true", help="also the cases of minutes per call, once")
     args = parser.parse_args()
     for name, channel, levels, budget, csi, tau_max in CASES:
         walls, cpus = [], []
@@ -103,6 +117,8 @@ def main() -> None:
         )
     for name, channel, design, beta, kw in ATTACKS:
         _timed(name, args.repeat, lambda: worst_attack(SYSTEM, channel, design, beta, **kw))  # noqa: B023
+    for name, channel, design, beta, kw in SLOW_ATTACKS if args.slow else []:
+        _timed(name, 1, lambda: worst_attack(SYSTEM, channel, design, beta, **kw))  # noqa: B023
 
 
 if __name__ == "__main__":

@@ -22,12 +22,15 @@ from ..model.system import LinearSystem
 from .power import LP_TOL, MASS_TOL, PROB_TOL
 from .state_policy import StatePolicy, Steps
 
-__all__ = ["LpSolution", "solve", "attack_free_gaps", "scale", "GAP_TAIL"]
+__all__ = ["LpSolution", "solve", "attack_free_gaps", "hazards", "scale", "GAP_TAIL"]
 
 #: The gap-law constraint stops where the attack-free tail of the gaps falls below this (gaps
-#: beyond share one row): the law's entries there fall below the smallest matrix entry HiGHS
-#: keeps (1e-9), and a law row whose coefficient is dropped makes the LP fail to solve.
-GAP_TAIL = 1e-8
+#: beyond share one row). The constraint is imposed on the hazards, whose coefficients are of
+#: order 1 however small the tail: the law's own entries would fall below the smallest matrix
+#: entry HiGHS keeps (1e-9) and, in rows spanning 1 to 1e-9, make its bases ill-conditioned.
+GAP_TAIL = 1e-12
+#: The smallest scale of the gap-law program's columns at a gap d (the attack-free tail there).
+D_FLOOR = 1e-6
 #: Rows of the LP's solution below this share of its value are taken as unvisited.
 SHARE_TOL = 1e-14
 #: Longest gap law computed.
@@ -74,6 +77,15 @@ def attack_free_gaps(steps: Steps, tail: float = GAP_TAIL) -> tuple[FloatArray, 
     else:
         raise ValueError(f"design: the attack-free gaps have a tail above {tail} beyond {MAX_GAP} steps")
     return np.array(out), float(pi[flags].sum())
+
+
+def hazards(law: FloatArray) -> FloatArray:
+    r"""The hazards of a gap law ``law`` (as :func:`attack_free_gaps` gives it):
+    :math:`h(l) = \Pr[\text{gap} = l \mid \text{gap} \ge l]`, entry l - 1 (1 for the last
+    entry, every gap >= G; 0 where the law is 0). The tails are summed from the smallest
+    entries up, so each hazard keeps its relative precision where the tail is tiny."""
+    tail = np.cumsum(law[::-1])[::-1]
+    return np.divide(law, tail, out=np.zeros_like(law), where=tail > 0.0)
 
 
 def scale(g: float, rho: float) -> float:
@@ -132,6 +144,17 @@ def solve(
     ib, if_ = block_of(n_t), block_of(n_t)
     iarr = block_of(n_t, K, G) if G > 1 else None
     ih = block_of(n_t, G) if gaps is not None else None
+    ireach = block_of(G) if gaps is not None else None
+    # Under the gap law the mass at d is the attack-free rate times P[gap > d], down to
+    # GAP_TAIL. If HiGHS fails on the program as built, it is solved again with the columns at
+    # d scaled by that tail (floored at D_FLOOR, keeping every matrix entry above HiGHS's 1e-9)
+    # and so the rows that balance d: the same program, on which HiGHS's bases and absolute
+    # tolerances (1e-10, on bounds too) behave differently; each of the two fails where the
+    # other solves on some HiGHS version or channel.
+    gap_tail = np.cumsum(gaps[0][::-1])[::-1] if gaps is not None else np.ones(G)  # P[gap > d]
+    dscale = np.maximum(gap_tail, D_FLOOR)
+    colscale: list[tuple[npt.NDArray[np.intp], npt.NDArray[Any]]] = [(iy, dscale[None, None, :, None])]
+    rowscale: list[tuple[npt.NDArray[np.intp], npt.NDArray[Any]]] = []
     rows: list[npt.NDArray[Any]] = []
     cols: list[npt.NDArray[Any]] = []
     vals: list[npt.NDArray[Any]] = []
@@ -155,6 +178,7 @@ def solve(
 
     # Balance of (t, e2, d2), t = 1..T: the loss flow in from t - 1 (and from T itself at t = T).
     brow = new_rows(T, E, G)
+    rowscale.append((brow, dscale))
     put(brow[:, :, :, None], iy[1:], 1.0)
     e_, e2_, a_ = np.nonzero(np.moveaxis(steps.loss, 0, 2))
     w = steps.loss[a_, e_, e2_]
@@ -173,6 +197,8 @@ def solve(
         # Arrivals into (0, c2, d2) summed over every t; one row per c2 follows from the marginal.
         arow = new_rows(n_t, K, G)
         cumulative(arow, iarr)
+        rowscale.append((arow, dscale))
+        colscale.append((iarr, dscale))
         e_, f_, a_ = np.nonzero(np.moveaxis(steps.arrival, 0, 2))
         w = steps.arrival[a_, e_, f_]
         put(
@@ -181,6 +207,7 @@ def solve(
             -w[None, :, None],
         )
         zrow = new_rows(K, G - 1)
+        rowscale.append((zrow, dscale[1:]))
         put(zrow[:, :, None], iy[0, np.arange(K) * S][:, 1:, :], 1.0)
         put(zrow, iarr[0][:, 1:], -1.0)
     # Budgets: blocked - beta * sent over flags, forged - phi * quiet over quiet steps (<= 0).
@@ -189,23 +216,40 @@ def solve(
         cumulative(r, iv)
         put(r[:, None, None], iy[:, states][..., bad], -(1.0 - share))
         put(r[:, None, None], iy[:, states][..., good], share)
-    if ih is not None and gaps is not None:
-        # The received gaps' law: deliveries at gap d are law[d] of all deliveries, and these come
-        # at the attack-free rate (a law of mean m is received once every m steps in the long run;
-        # without it, delivering nothing would meet the law vacuously).
+    if ih is not None and ireach is not None and gaps is not None:
+        # The received gaps' law as hazards: of the gaps that reach length l + 1, the share
+        # delivered there is the attack-free h(l + 1) = P[gap = l + 1 | gap > l], and gaps start at
+        # the attack-free rate (a law of mean m is received once every m steps in the long run;
+        # without it, delivering nothing would meet the law vacuously). With R(l) the rate of
+        # gaps that reach l + 1 (the deliveries at l and beyond), this is the marginal law with
+        # coefficients of order 1 (GAP_TAIL).
         law, rate = gaps
+        hazard = hazards(law)
         hrow = new_rows(n_t, G)
         cumulative(hrow, ih)
+        rowscale.append((hrow, dscale))
+        colscale += [(ih, dscale), (ireach, dscale)]
         put(hrow[:, None, :], iy[:, :, :, 1], -1.0)
-        lrow = new_rows(G - 1)  # the last gap's row follows from the others and the law's sum 1
-        put(lrow, ih[0][:-1], 1.0)
-        put(lrow[:, None], ih[0][None, :], -law[:-1, None])
+        crow = new_rows(G)  # R(l) - deliveries at l - R(l + 1) = 0
+        put(crow, ireach, 1.0)
+        put(crow, ih[0], -1.0)
+        put(crow[:-1], ireach[1:], -1.0)
+        rowscale.append((crow, dscale))
+        zrow = new_rows(G - 1)  # deliveries at l - h(l + 1) R(l) = 0; the last follows
+        rowscale.append((zrow, dscale[:-1]))
+        put(zrow, ih[0][:-1], 1.0)
+        put(zrow, ireach[:-1], -hazard[:-1])
         rrow = new_rows(1)
-        put(rrow, ih[0][None, :], 1.0)
+        put(rrow, ireach[:1], 1.0)
         b_eq_parts.append((rrow, np.array([rate])))
     n_eq, nvar = nrow[0], counter[0]
+    csc, rsc = np.ones(nvar), np.ones(n_eq)
+    for idx, f in colscale:
+        csc[idx] = np.broadcast_to(f, idx.shape)
+    for idx, f in rowscale:
+        rsc[idx] = np.broadcast_to(f, idx.shape)
     ij = (np.concatenate(rows).astype(np.intp), np.concatenate(cols).astype(np.intp))
-    A_eq = sp.csr_array((np.concatenate(vals), ij), shape=(n_eq, nvar))
+    entries = np.concatenate(vals)
     b_eq = np.zeros(n_eq)
     for r, v in b_eq_parts:
         b_eq[r] = v
@@ -227,31 +271,39 @@ def solve(
     live = _recurrent_candidates(steps, n_t, nxt, allowed)
     upper[iy[~live].ravel()] = 0.0
     upper[iy[:, np.broadcast_to(~allowed, (E, G, 2))].ravel()] = 0.0
-    res = linprog(
-        -cost,
-        A_eq=cast(Any, A_eq),  # HiGHS takes sparse matrices; the stubs list only dense ones
-        b_eq=b_eq,
-        bounds=cast(Any, np.column_stack([lower, upper])),
-        method="highs",
-        options={
-            "primal_feasibility_tolerance": LP_TOL,
-            "dual_feasibility_tolerance": LP_TOL,
-            # Presolve fails (status "Not Set") on the plain LP's deep, tiny-cost columns near
-            # tau_max = 200; the stealth LPs need it to drop their many states fixed at 0.
-            "presolve": G > 1,
-        },
-    )
-    if res.status == 2 or "primal_status is Infeasible" in str(res.message):  # as presolve words it
+    bounds = np.column_stack([lower, upper])
+    for scaled in (False, True) if gaps is not None else (False,):
+        c_, r_ = (csc, rsc) if scaled else (np.ones(nvar), np.ones(n_eq))
+        res = linprog(
+            -cost * c_,
+            # HiGHS takes sparse matrices; the stubs list only dense ones
+            A_eq=cast(Any, sp.csr_array((entries * c_[ij[1]] / r_[ij[0]], ij), shape=(n_eq, nvar))),
+            b_eq=b_eq / r_,
+            bounds=cast(Any, bounds),
+            method="highs",
+            options={
+                "primal_feasibility_tolerance": LP_TOL,
+                "dual_feasibility_tolerance": LP_TOL,
+                # Presolve fails (status "Not Set") on the plain LP's deep, tiny-cost columns near
+                # tau_max = 200; the stealth LPs need it to drop their many states fixed at 0.
+                "presolve": G > 1,
+            },
+        )
+        if res.status in (0, 2):
+            break
+    if res.status == 2:
         raise ValueError(
-            "forge_budget: the stealth program is infeasible to the solver's tolerance: within these budgets "
-            "the sensor must receive flag-ACKs at the attack-free rate, which leaves at most the attack-free "
-            "policy (J_on); raise forge_budget or beta"
+            "forge_budget: HiGHS finds the stealth program infeasible: no attacker within these budgets "
+            "delivers flag-ACKs with the attack-free gaps at the attack-free rate; raise forge_budget or beta"
         )
     if res.status != 0:
         raise ConvergenceError(f"the worst-attack LP (tau_max = {T}) was not solved: {res.message}")
     assert res.x is not None and res.fun is not None  # status 0: solved
     j_lp = float(-res.fun)
-    y = np.clip(res.x[:ny].reshape(n_t, E, G, 2), 0.0, None)
+    # The policy's ratios are read on masses relative to the attack-free tail at d (absolute
+    # masses would leave the deep gaps unvisited and their law unmet).
+    y = np.clip(res.x[:ny].reshape(n_t, E, G, 2) * c_[:ny].reshape(n_t, E, G, 2), 0.0, None)
+    y = y / gap_tail[None, None, :, None]
     # Rows whose share of the objective is below the solver's resolution count as unvisited.
     share_ok = y.sum(axis=3) * unit[:, None, None] > SHARE_TOL * j_lp
     policy = _policy(np.where(share_ok[..., None], y, 0.0), K, S)

@@ -53,7 +53,9 @@ class WorstAttack:
     j: float
     """The exact long-run cost J under ``policy`` (attained)."""
     j_lp: float
-    """The LP's optimal value: an upper bound on J under every attacker within the budgets."""
+    """The LP's optimal value: an upper bound on J under every attacker within the budgets
+    (``j`` itself where the attack-free policy is the only one feasible, found without the LP:
+    see :func:`worst_attack`)."""
     policy: StatePolicy
     """The optimal attacker (a flag row never visited repeats the next visited one; no forging
     where unvisited)."""
@@ -96,18 +98,37 @@ def worst_attack(
     chain, so the optimum is an LP over its occupation measure (module docstring), and its value
     bounds every attacker within the budgets, whatever it sees.
 
-    **Stealth.** With d in the state, the gap law is linear in the occupation measure: the
-    long-run rate of deliveries at d = l is :math:`p_l` times the rate of all deliveries, which
-    is the attack-free flag rate. A test on the marginal law of the gaps cannot see such an
-    attacker; a test on the correlation of consecutive gaps still may, since the optimum's
-    gaps need not be independent (mimicry's are: it runs a copy of the attack-free protocol).
+    **Stealth.** With d in the state, the gap law is linear in the occupation measure. It is
+    imposed through the attack-free hazards :math:`h_l = \Pr[\text{gap} = l \mid \text{gap}
+    \ge l]`: with :math:`R_l` the long-run rate of received gaps that reach length l, the rate
+    of deliveries at gap l is :math:`h_l R_l`, and :math:`R_1` is the attack-free flag rate
+    (equivalent to the law :math:`p_l = h_l \prod_{i<l}(1 - h_i)` at that rate, with
+    coefficients of order 1 however small :math:`p_l`). A test on the marginal law of the gaps
+    cannot see such an attacker; a test on the correlation of consecutive gaps still may, since
+    the optimum's gaps need not be independent (mimicry's are: it runs a copy of the
+    attack-free protocol).
+
+    **Gap law without forging.** With ``forge_budget=0`` every flag-ACK received is a genuine
+    one. On an i.i.d. channel each genuine flag-ACK leaves the protocol in the same state (the
+    detector's count restarts), so a received gap is an attack-free gap plus, for each
+    flag-ACK blocked in it, the steps to the next genuine one (at least one): blocking any
+    positive fraction makes the mean received gap longer than the attack-free mean, and the
+    received rate lower than the attack-free one. The attack-free policy is then the only
+    attacker within the budgets; it is returned without the LP (``j_lp = j`` = J_on,
+    ``tail_bound = 0``). On a Markov channel the LP decides.
 
     **Scaling.** The masses fall like :math:`g^t` (g the channel's largest loss probability)
     while the traces grow like :math:`\rho(A)^{2t}` (1e32 at t = 200 on the paper's example). The
     LP is solved in :math:`y(t,\cdot) = x(t,\cdot)/s^t`, :math:`s = \sqrt{g/\rho(A)^2}`, so
     that scaled masses and scaled costs both fall like :math:`(g\rho(A)^2)^{t/2}`, with
     cumulative variables :math:`\sigma_t = (\dots)_t + s\,\sigma_{t+1}` for the sums over all t
-    (normalisation, budgets), as in :func:`fakeack.optimal_power_policy`.
+    (normalisation, budgets), as in :func:`fakeack.optimal_power_policy`. Under the gap law the
+    policy is read off the masses at gap d relative to the attack-free tail
+    :math:`\Pr[\text{gap} > d]` (the mass the law puts there), down to the truncation; the
+    solver's tolerances (1e-10) are absolute, so the received law is met to about 1e-9 in the
+    worst case (within 1e-15 on the paper's example at T = 200). Where HiGHS fails on the
+    program, it is solved again with the columns and rows at gap d scaled by that tail (the
+    same program, on which HiGHS's factorisations take other paths).
 
     **The tail bound, on the safe side.** For a maximisation the truncation must not lower the
     LP's value: the aggregated state t = T is costed at an upper bound of what every
@@ -142,7 +163,7 @@ def worst_attack(
         What the flag-ACKs the sensor receives must look like. None: anything. ``"support"``:
         no gap between two received flag-ACKs shorter than the shortest attack-free gap.
         ``"gap-law"``: the gaps' marginal law is the attack-free one (each gap length up to
-        the length where the attack-free tail falls below 1e-8, the longer ones together) and
+        the length where the attack-free tail falls below 1e-12, the longer ones together) and
         they come at the attack-free rate. Both put d, the steps since the last flag-ACK
         received (capped at the constraint's length), in the LP's state, and the optimum reads
         it; a truncated law is a relaxation, so ``j_lp`` still bounds every attacker whose
@@ -158,8 +179,8 @@ def worst_attack(
     Raises
     ------
     TypeError, ValueError
-        Naming ``beta`` or ``forge_budget`` outside [0, 1] (``forge_budget`` also when no
-        attacker within the budgets meets the stealth constraint), ``information`` or
+        Naming ``beta`` or ``forge_budget`` outside [0, 1] (``forge_budget`` also when HiGHS
+        finds no attacker within the budgets that meets the stealth constraint), ``information`` or
         ``stealth`` not known, ``design`` not an OnlineDesign, ``tau_max``; naming ``channel``
         when its largest loss probability g has :math:`g\rho(A)^2 \ge 1` (an attacker can then
         make J infinite, or nearly so, and the tail bound is infinite).
@@ -221,6 +242,12 @@ def _solve(
 ) -> WorstAttack:
     steps = protocol_steps(ch, design)
     gaps = attack_free_gaps(steps) if stealth == "gap-law" else None
+    if gaps is not None and budgets[1] == 0.0 and ch.n_states == 1:
+        # Only the attack-free policy is feasible (worst_attack's docstring): no LP.
+        free = StatePolicy(np.zeros(T + 1))
+        aut = free.automaton(ch, design)
+        j = automaton_cost(system, aut)
+        return WorstAttack(j, j, free, 0.0, 0.0, 0.0, T, free.flag_automaton(design), gaps[0])
     min_gap = int(np.flatnonzero(attack_free_gaps(steps)[0])[0]) + 1 if stealth == "support" else 1
     sol = solve(system, ch, steps, budgets, g, T, gaps, min_gap)
     aut = sol.policy.automaton(ch, design)
