@@ -17,6 +17,7 @@ import numpy as np
 from .._internal.types import IntArray
 from .._internal.validate import as_probability
 from ..model.channels import ChannelLike, MarkovChannel, as_channel, closed_classes
+from ..model.schedules import as_pattern
 
 __all__ = ["Jamming", "RandomJamming", "JammingAttack", "MAX_JAMMED_STATES"]
 
@@ -24,27 +25,6 @@ __all__ = ["Jamming", "RandomJamming", "JammingAttack", "MAX_JAMMED_STATES"]
 MAX_JAMMED_STATES = 1024
 #: Longest pattern a repr writes out.
 _REPR = 64
-
-
-def _as_pattern(pattern: object) -> tuple[int, ...]:
-    """A non-empty 0/1 pattern from a string of 0/1 or a sequence of 0/1 or booleans."""
-    if isinstance(pattern, str):
-        if not pattern or set(pattern) - {"0", "1"}:
-            raise ValueError(f"pattern must be a non-empty string of 0 and 1, got {pattern!r}")
-        return tuple(int(c) for c in pattern)
-    if pattern is None or isinstance(pattern, (bytes, bool, np.bool_, int, float)):
-        raise TypeError(f"pattern must be a string or a sequence of 0/1, got {type(pattern).__name__}")
-    try:
-        arr = np.asarray(pattern)
-    except (TypeError, ValueError) as exc:
-        raise ValueError(f"pattern: cannot be read as a sequence of 0/1 ({exc})") from None
-    if arr.ndim != 1 or arr.size == 0:
-        raise ValueError(f"pattern must be a non-empty 1-D sequence of 0/1, got shape {arr.shape}")
-    if arr.dtype.kind not in "biuf":
-        raise TypeError(f"pattern must hold 0/1 or booleans, got dtype {arr.dtype}")
-    if not np.all(np.isin(arr, (0, 1))):
-        raise ValueError("pattern must hold only 0 and 1")
-    return tuple(int(x) for x in arr)
 
 
 @dataclass(frozen=True, init=False)
@@ -93,7 +73,7 @@ class Jamming:
     """One period of the jamming, 1 = jammed, first entry = step 1."""
 
     def __init__(self, pattern: object) -> None:
-        pat = _as_pattern(pattern)
+        pat = as_pattern(pattern)
         if all(pat):
             raise ValueError("pattern must leave at least one step unjammed (a 0): else no packet arrives")
         object.__setattr__(self, "pattern", pat)

@@ -174,7 +174,7 @@ def j_offline(
     if pattern is not None:
         if max_period is not None:
             raise TypeError("max_period: a given pattern is evaluated, not searched")
-        return pattern_cost(system, ch, _as_pattern(pattern))
+        return pattern_cost(system, ch, as_pattern(pattern))
     if is_paper_channel(ch):  # Theorem 3.1: the evenly spread pattern, whatever max_period
         lam_v = as_probability(name, ch.low[0])
         r = as_ratio("ratio", ratio)
@@ -435,7 +435,7 @@ class OfflineSchedule:
             object.__setattr__(self, "_given", None)
         else:
             object.__setattr__(self, "ratio", None)
-            object.__setattr__(self, "_given", _as_pattern(pattern))
+            object.__setattr__(self, "_given", as_pattern(pattern))
 
     @property
     def pattern(self) -> IntArray:
@@ -474,14 +474,15 @@ MAX_PATTERN_REPR = 64
 MAX_PATTERN = 10_000_000
 
 
-def _as_pattern(pattern: Any) -> tuple[int, ...]:
-    """A non-empty 0/1 pattern from a string of 0/1 or a sequence of 0/1 or booleans."""
+def as_pattern(pattern: Any) -> tuple[int, ...]:
+    """A non-empty 0/1 pattern (an offline schedule's, a jammer's) from a string of 0/1 or a
+    sequence of 0/1 or booleans; errors name ``pattern``."""
     if isinstance(pattern, str):
         if not pattern or set(pattern) - {"0", "1"}:
             raise ValueError(f"pattern must be a non-empty string of 0 and 1, got {pattern!r}")
         return tuple(int(c) for c in pattern)
-    if isinstance(pattern, bytes):
-        raise TypeError("pattern must be a string or a sequence of 0/1, got bytes")
+    if pattern is None or isinstance(pattern, (bytes, bool, np.bool_, int, float)):
+        raise TypeError(f"pattern must be a string or a sequence of 0/1, got {type(pattern).__name__}")
     try:
         arr = np.asarray(pattern)
     except (TypeError, ValueError) as exc:
