@@ -391,12 +391,13 @@ def _jamming_text(doc: dict[str, Any]) -> list[str]:
             "",
             "long run, the jammer seeing tau (J = inf: a policy within the rate makes the cost unbounded):",
             *_table(
-                ["rate", "J", "method", "jammed fraction", "tau_max"],
+                ["rate", "J", "method", "tail", "jammed fraction", "tau_max"],
                 [
                     [
                         f"{r['rate']:g}",
                         format_number(r["j"]),
                         r["method"],
+                        "-" if r["method"] == "unbounded" else f"{r['tail_bound']:.1e}",
                         f"{r['jammed_fraction']:.6g}",
                         str(r["tau_max"]),
                     ]
@@ -408,7 +409,18 @@ def _jamming_text(doc: dict[str, Any]) -> list[str]:
 
 
 def optimal_text(doc: dict[str, Any]) -> str:
-    """The report of ``fakeack optimal``, from its JSON document (:func:`optimal_document`)."""
+    """The report of ``fakeack optimal``, from its JSON document.
+
+    Parameters
+    ----------
+    doc : dict
+        The document of :func:`optimal_document`.
+
+    Returns
+    -------
+    str
+        The three tables (power, attack, jamming), one line per row, and the time each took.
+    """
     seconds = doc["seconds"]
     lines = [
         f"fakeack optimal: {doc['config']}",
