@@ -9,7 +9,7 @@ from .. import __version__
 from .._internal.validate import MODES, PROTOCOLS
 from ..config.channel import CHANNEL_OPTION
 from ..studies.report import DEFAULT_HORIZON, DEFAULT_OUT, DEFAULT_RUNS, DEFAULT_SEED, DEFAULT_T_MAX
-from . import analyze, game, grid, reproduce, simulate, sweep
+from . import analyze, game, grid, optimal, reproduce, simulate, sweep
 
 __all__ = ["build_parser"]
 
@@ -274,6 +274,27 @@ def _add_game(sub: argparse._SubParsersAction) -> None:
     parser.set_defaults(func=game.run)
 
 
+def _add_optimal(sub: argparse._SubParsersAction) -> None:
+    parser = sub.add_parser(
+        "optimal",
+        formatter_class=_Formatter,
+        help="the optimal power policy, the worst attack and the optimal jamming",
+        description="For the system of CONFIG.toml and its [optimal] section (default: the paper's "
+        "example): the sensor's optimal power policy at each energy budget beside the online schedule "
+        "that spends it (fakeack.optimal_power_policy), the worst attack on the flag-ACKs at each "
+        "blocking budget beside the large-period limit of consecutive blocking (fakeack.worst_attack), "
+        "and the optimal jamming of the data channel, finite-horizon and long-run "
+        "(fakeack.optimal_jamming). 'fakeack optimal --example' prints a commented config.",
+    )
+    parser.add_argument(
+        "config", nargs="?", metavar="CONFIG.toml", help="the config file ('-' reads standard input)"
+    )
+    parser.add_argument("--example", action="store_true", help="print the example config and exit")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of the tables")
+    _add_channel_flag(parser, "instead of the config's")
+    parser.set_defaults(func=optimal.run)
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``fakeack`` command.
 
@@ -290,6 +311,6 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"fakeack {__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for add in (_add_reproduce, _add_analyze, _add_sweep, _add_simulate, _add_grid, _add_game):
+    for add in (_add_reproduce, _add_analyze, _add_sweep, _add_simulate, _add_grid, _add_game, _add_optimal):
         add(sub)
     return parser

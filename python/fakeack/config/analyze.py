@@ -14,6 +14,7 @@ example (:func:`example_text`), which is the paper's system of Sec. V::
                         # optional [attack.sweep] t_max = 60
     [montecarlo]        # runs, horizon, seed, mode; omit the section to skip the Monte Carlo
     [game]              # the sensor-attacker game of ``fakeack game`` (fakeack._game_config)
+    [optimal]           # the optimal policies of ``fakeack optimal`` (fakeack.config.optimal)
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ from ..model.schedules import OnlineDesign, design_online, energy_ratio
 from ..model.system import LinearSystem
 from .channel import CHANNEL_SECTION, system_channel, with_channel
 from .game import GAME_SECTION
+from .optimal import OPTIMAL_SECTION
 from .values import (
     ConfigError,
     Section,
@@ -81,6 +83,7 @@ _SECTIONS: dict[str, Section] = {
     "attack": Section(("betas", "random", "inject", "sweep")),
     "montecarlo": Section(("runs", "horizon", "seed", "mode", "protocol")),
     "game": GAME_SECTION,  # read by fakeack game (fakeack._game_config)
+    "optimal": OPTIMAL_SECTION,  # read by fakeack optimal (fakeack.config.optimal)
 }
 _SWEEP_SECTION = Section(("t_max",))
 
