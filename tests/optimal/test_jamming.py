@@ -9,7 +9,6 @@ the package uses).
 
 import itertools
 import math
-import time
 
 import numpy as np
 import pytest
@@ -216,14 +215,6 @@ def test_long_horizon_with_traces_beyond_the_double_range(paper):
     assert 2085 * math.log(1.44) - math.log(2100) > 709.8 and big.j == math.inf
 
 
-def test_speed_of_the_finite_horizon(paper):
-    """T = 100, n = 30: the block scan on a lossy channel and the closed form, each under 1 s."""
-    for channel in (LAM, 1.0):
-        t = time.perf_counter()
-        optimal_jamming(paper, channel, 30, 100)
-        assert time.perf_counter() - t < 1.0
-
-
 # ---------------------------------------------------------------- long run
 
 
@@ -348,6 +339,12 @@ def test_long_run_unbounded_cases(paper):
     assert res.method == "unbounded" and res.j == math.inf and res.jammed_fraction < 1e-50
     res = optimal_jamming(paper, 0.2, rate=0.1)
     assert res.method == "unbounded" and not res.jam_probability.any() and res.jammed_fraction == 0.0
+    # The witness jams at tau_max with the probability that puts (1 - (1 - p) lam) rho^2 at 1;
+    # in floating point it lands within rounding of 1 on either side (at lam = 0.6 just below),
+    # where the tail's Lyapunov equation is singular: unbounded all the same.
+    for lam in (0.55, 0.6, 0.65):
+        res = optimal_jamming(paper, lam, rate=0.1)
+        assert res.method == "unbounded" and res.j == math.inf, lam
 
 
 def test_long_run_without_budget_is_the_unjammed_cost(stable):
