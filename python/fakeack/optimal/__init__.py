@@ -7,9 +7,11 @@ policy it returns, evaluated exactly as an automaton of the engine. :func:`optim
 the jammer's best schedule against the data channel, over a finite horizon or in the long run.
 :func:`worst_attack` gives the attacker's most damaging use of the flag-ACKs within a blocking
 budget, as a :class:`StatePolicy` that reads the holding time and the detector's state.
+:func:`attack_effort` compares jamming, blocking and forging per unit of attacker energy.
 """
 
 from .attack import WorstAttack, worst_attack
+from .effort import AttackEffort, AttackOption, attack_effort, jam_high_channel
 from .jamming import JammingResult, optimal_jamming
 from .policies import HoldingTimePolicy, PolicyAutomaton
 from .power import PowerPolicyResult, optimal_power_policy
@@ -25,4 +27,8 @@ __all__ = [
     "StatePolicy",
     "WorstAttack",
     "worst_attack",
+    "AttackEffort",
+    "AttackOption",
+    "attack_effort",
+    "jam_high_channel",
 ]
