@@ -225,7 +225,7 @@ def attack_effort(
     >>> s = fa.LinearSystem(1.2, 0.7, 0.8, 0.8)
     >>> res = attack_effort(s, 0.5, "1/7", [0.0, 0.05], kinds=("jam", "block"))
     >>> res.best[1], [round(float(v), 4) for v in res.j[:, 1]]
-    ('block', [1.8001, 2.4222])
+    ('block', [1.8001, 2.1067])
     """
     compiled(system)
     ch = as_channel(channel, "channel")
