@@ -14,7 +14,6 @@ import pytest
 
 import fakeack as fa
 from conftest import PAPER, PAPER_LAM, PAPER_RATIO
-from fakeack.attacks import RandomJamming
 from fakeack.optimal.effort import KINDS, attack_effort, jam_high_channel
 from fakeack.plots.effort import plot_attack_effort
 
