@@ -76,6 +76,6 @@ def plot_attack_effort(result: AttackEffort, ax: Axes | None = None, *, fallback
     )
     axes.set_ylabel("J (long-run mean Tr P)")
     sensor = "sensor falling back to the better schedule" if fallback else "online sensor"
-    axes.set_title(f"Which attack to buy: {sensor}, {result.design}")
+    axes.set_title(f"Which attack to buy against the {sensor} ({result.design})")
     axes.legend(fontsize=8)
     return fig
