@@ -92,3 +92,15 @@ def test_bad_arguments_are_named(kwargs, exc, match):
             args["beta"],
             **{k: v for k, v in kwargs.items() if k not in ("ratio", "beta")},
         )
+
+
+def test_on_a_bursty_channel_the_robust_design_beats_the_fall_back():
+    s = fa.LinearSystem(A=1.05, C=0.7, Q=0.8, R=0.8)
+    ge = fa.GilbertElliott(0.1, 0.3, 0.9, 0.2)
+    r = robust_design(s, ge, RATIO, 0.5, extra_memory=1, mu_points=2)
+    assert r.nominal == fa.design_online(ge, RATIO)
+    assert r.design == fa.OnlineDesign(2, 1.0)
+    assert r.j_worst == pytest.approx(fa.worst_attack(s, ge, fa.OnlineDesign(2, 1.0), 0.5).j, rel=1e-10)
+    assert r.j_offline == pytest.approx(fa.j_offline(s, ge, RATIO), rel=1e-10)
+    assert r.j_worst < r.j_offline < r.j_nominal_worst
+    assert np.all(r.high_power_rate <= float(RATIO) * (1 + 1e-9))
