@@ -182,3 +182,21 @@ def test_plot_draws_one_curve_per_kind_and_the_references(res):
     np.testing.assert_allclose(ax2.lines[2].get_ydata(), res.j_fallback[2])
     with pytest.raises(TypeError, match="^result"):
         plot_attack_effort(object())  # type: ignore[arg-type]
+
+
+def test_saturated_jamming():
+    from fakeack.attacks import Jamming
+
+    res = attack_effort(S, PAPER_LAM, PAPER_RATIO, [2.0], kinds=("jam", "jam-high"))
+    jam, high = (row[0] for row in res.options)
+    assert jam.budget == 1.0 and jam.spent == 1.0 and jam.j == jam.j_offline == np.inf  # rho(A) > 1
+    # Every high-power step jammed: the offline schedule loses its high-power step each period,
+    # the periodic jamming pattern of the same phase.
+    assert high.budget == 1.0 and high.spent < 2.0
+    off = fa.OfflineSchedule(pattern="1000000")
+    assert high.j_offline == pytest.approx(
+        fa.Scenario(S, PAPER_LAM, off, Jamming("1000000")).cost(), rel=1e-10
+    )
+    stable = fa.LinearSystem(A=0.9, C=0.7, Q=0.8, R=0.8)
+    jam = attack_effort(stable, PAPER_LAM, PAPER_RATIO, [2.0], jam_cost=2.0, kinds=("jam",)).options[0][0]
+    assert jam.j == pytest.approx(0.8 / (1 - 0.81), rel=1e-12)  # Tr X_inf, X = A X A' + Q

@@ -10,11 +10,13 @@ whose energy per step is e (or, once the kind is saturated, less), evaluates its
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
+import scipy.linalg as sla
 from scipy.optimize import brentq
 
 from .._internal.types import FloatArray, RatioLike
@@ -165,7 +167,9 @@ def attack_effort(
     * ``"jam"``, blind jamming of the data channel: every step jammed independently with
       probability :math:`r = \min(1, e/c_\mathrm{jam})` (:class:`fakeack.RandomJamming`; energy
       :math:`r c_\mathrm{jam}` per step). A jammed step loses the packet at any power, and the
-      remote detector counts it as a loss.
+      remote detector counts it as a loss (at r = 1 no packet arrives: J is
+      :math:`\mathrm{Tr}\,X_\infty`, :math:`X_\infty = A X_\infty A' + Q`, if
+      :math:`\rho(A) < 1`, else infinite).
     * ``"jam-high"``, reactive jamming: each high-power step jammed with probability p
       (:func:`jam_high_channel`); energy :math:`p f_p c_\mathrm{jam}`, :math:`f_p` the
       high-power rate under that jamming (``Scenario.high_power_rate``), which grows with p.
@@ -301,13 +305,16 @@ class _Kit:
         if kind == "jam":
             rate = min(1.0, effort / self.jam_cost)
             jam = RandomJamming(rate)
-            j = _cost(Scenario(self.system, self.ch, self.design, jam))
-            j_off = _cost(Scenario(self.system, self.ch, self.offline, jam))
+            if rate == 1.0:  # no packet ever arrives, whatever the schedule
+                j = j_off = _no_arrival_cost(self.system)
+            else:
+                j = Scenario(self.system, self.ch, self.design, jam).cost()
+                j_off = Scenario(self.system, self.ch, self.offline, jam).cost()
             return AttackOption(kind, effort, rate * self.jam_cost, rate, j, j_off, self.ch, jam)
         if kind == "jam-high":
             p = _budget(lambda x: self.jam_high(x)[2], effort)
             jc, j, spent = self.jam_high(p)
-            j_off = _cost(Scenario(self.system, jc, self.offline))
+            j_off = Scenario(self.system, jc, self.offline).cost()
             return AttackOption(kind, effort, spent, p, j, j_off, jc, None)
         blocking = kind == "block"
         x = _budget(
@@ -341,9 +348,12 @@ def _budget(spent: Callable[[float], float], effort: float) -> float:
     return root
 
 
-def _cost(sc: Scenario) -> float:
-    """The scenario's J (``inf`` where it diverges: the engine's stability test)."""
-    return sc.cost()
+def _no_arrival_cost(system: LinearSystem) -> float:
+    r"""J when no packet arrives: :math:`\lim_k \mathrm{Tr}\,h^k(\bar P) = \mathrm{Tr}\,X_\infty`,
+    :math:`X_\infty = A X_\infty A' + Q`, if :math:`\rho(A) < 1`; else infinite."""
+    if system.spectral_radius >= 1.0:
+        return math.inf
+    return float(np.trace(sla.solve_discrete_lyapunov(system.A, system.Q)))
 
 
 def _positive(name: str, x: object) -> float:
