@@ -181,9 +181,10 @@ def attack_effort(
     * ``"forge"``: :func:`fakeack.worst_attack` with beta = 0 and forge budget phi; energy
       :math:`c_\mathrm{forge}` times its forged flag-ACKs per step.
 
-    The budget (r, p, beta or phi) is the largest whose energy is at most e: the energy grows
-    with it, and it is found by Brent's method to 1e-12; when even the largest budget spends less
-    than e the kind is saturated and its largest budget is used. For blocking and forging J grows
+    The budget (r, p, beta or phi) is the one whose energy is e, found by Brent's method to 1e-12
+    (the energy grows with the budget in every case computed in the tests and the docs, so it is
+    the largest budget within e; ``spent`` reports the energy of the budget returned); when even
+    the largest budget spends less than e the kind is saturated and its largest budget is used. For blocking and forging J grows
     with e (a larger budget admits every smaller attack); for the jamming families it does in every
     example of the tests, but it is not a theorem here: a jammed step also makes the detector
     send its flag-ACK sooner. The blocking and forging attacks are
