@@ -184,11 +184,11 @@ def attack_effort(
     The budget (r, p, beta or phi) is the one whose energy is e, found by Brent's method to 1e-12
     (the energy grows with the budget in every case computed in the tests and the docs, so it is
     the largest budget within e; ``spent`` reports the energy of the budget returned); when even
-    the largest budget spends less than e the kind is saturated and its largest budget is used. For blocking and forging J grows
-    with e (a larger budget admits every smaller attack); for the jamming families it does in every
-    example of the tests, but it is not a theorem here: a jammed step also makes the detector
-    send its flag-ACK sooner. The blocking and forging attacks are
-    optimal for a *fraction* budget; an attacker bound only by energy per step could spread it
+    the largest budget spends less than e the kind is saturated and its largest budget is used.
+    For blocking and forging J grows with e (a larger budget admits every smaller attack); for
+    the jamming families it does in every example of the tests, but it is not a theorem here: a
+    jammed step also makes the detector send its flag-ACK sooner. The blocking and forging
+    attacks are optimal for a *fraction* budget; an attacker bound only by energy per step could spread it
     otherwise, so their J is what that attacker reaches at least. Blind and reactive jamming are
     families, not optima: an attacker that jams knowing the holding time can do more (on an
     unstable process, holding the jam probability above :math:`1/\rho(A)^2` once the holding
