@@ -112,6 +112,7 @@ CASES = {
     "plot_stability_region": ("stability_inputs", 2, lambda d, ax: plots.plot_stability_region(d, ax)),
     "plot_memory": ("memory_inputs", 2, lambda d, ax: plots.plot_memory(d, ax)),
     "plot_delay_frontier": ("delay_inputs", 1, lambda d, ax: fa.plot_delay_frontier(d, ax)),
+    "plot_attack_effort": ("effort_inputs", 1, lambda d, ax: plots.plot_attack_effort(d, ax)),
 }
 
 
@@ -120,6 +121,13 @@ def delay_inputs(paper):
     return [
         fa.delay_frontier(paper, 0.5, "1/7", 2e4, fam, window=200, grid=2) for fam in ("random", "mimicry")
     ]
+
+
+@pytest.fixture(scope="module")
+def effort_inputs(paper):
+    from fakeack.optimal import attack_effort
+
+    return attack_effort(paper, 0.5, "1/7", [0.0, 0.04], kinds=("jam", "block"))
 
 
 @pytest.fixture(scope="module")

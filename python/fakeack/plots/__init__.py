@@ -20,6 +20,7 @@ notebooks. A new figure shows in Jupyter as the value of a cell, or is written w
 from ._figure import save_figure
 from .delay import plot_delay_frontier
 from .detection import plot_detection_curves
+from .effort import plot_attack_effort
 from .families import plot_attack_families
 from .frontier import plot_frontiers
 from .game import plot_game
@@ -36,6 +37,7 @@ __all__ = [
     "plot_beta_sweep",
     "plot_stationary",
     "plot_attack_families",
+    "plot_attack_effort",
     "plot_frontiers",
     "plot_detection_curves",
     "plot_delay_frontier",
