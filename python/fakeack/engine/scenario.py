@@ -78,7 +78,7 @@ class Scenario:
         The ACK-based online schedule ``(z0, mu)``, or an offline one (by its ratio or any
         pattern). An offline sensor ignores flag-ACKs, so it takes no flag-ACK attack. Or a
         sensor policy that writes itself out as the engine's automaton
-        (``scenario_chain(channel)``, :class:`fakeack.engine.chains.SchedulePolicy`), such as
+        (``scenario_chain(channel)``, ``fakeack.engine.chains.SchedulePolicy``), such as
         :class:`fakeack.HoldingTimePolicy`: its L power levels carry their own energies and
         arrival probabilities, the channel supplies only its state process ``P``, and it takes
         no attack (it reads per-packet ACKs, not flag-ACKs).
@@ -87,7 +87,7 @@ class Scenario:
         :class:`fakeack.FlagInjection` with ``min_gap``; :class:`fakeack.MimicryAttack`, whose
         ``None`` channel and design are this scenario's; any :class:`fakeack.AttackerAutomaton`;
         an attacker that writes itself out as the engine's automaton
-        (``scenario_chain(channel, design)``, :class:`fakeack.engine.chains.AttackPolicy`), such
+        (``scenario_chain(channel, design)``, ``fakeack.engine.chains.AttackPolicy``), such
         as :class:`fakeack.StatePolicy`, with an online schedule; or jamming of the data
         channel, :class:`fakeack.Jamming` (step k jammed iff ``pattern[(k - 1) % L]``, phase 0
         at step 1) or :class:`fakeack.RandomJamming`, with an online or offline schedule. A

@@ -79,7 +79,7 @@ class AttackOption:
     """
 
     kind: str
-    """One of :data:`KINDS`."""
+    """One of "jam", "jam-high", "block", "forge"."""
     effort: float
     """The effort asked for: the attacker's energy per step."""
     spent: float
@@ -112,7 +112,7 @@ class AttackEffort:
     effort: FloatArray
     """``(n,)`` the efforts: attacker energy per step, increasing."""
     kinds: tuple[str, ...]
-    """The kinds compared, a subset of :data:`KINDS`."""
+    """The kinds compared, a subset of ("jam", "jam-high", "block", "forge")."""
     j: FloatArray
     """``(len(kinds), n)`` J of the online sensor under the best attack of each kind."""
     j_fallback: FloatArray
@@ -213,7 +213,7 @@ def attack_effort(
     jam_cost, block_cost, forge_cost : float, keyword-only, optional
         Attacker energy per jammed step, per blocked and per forged flag-ACK (positive; default 1).
     kinds : sequence of str, keyword-only, optional
-        The kinds to compare, from :data:`KINDS` (default all).
+        The kinds to compare, from "jam", "jam-high", "block", "forge" (default all).
 
     Returns
     -------
