@@ -426,7 +426,9 @@ def test_readme_slurm_example_builds_its_job_script(monkeypatch):
     real = jobqueue.SLURMCluster
 
     def local(*args, **kwargs):  # the test binds the scheduler to the loopback interface only
-        kwargs.setdefault("scheduler_options", {})["host"] = "127.0.0.1"
+        options = kwargs.setdefault("scheduler_options", {})
+        options["host"] = "127.0.0.1"
+        options["dashboard_address"] = ":0"  # a free port: another test may hold 8787 meanwhile
         return real(*args, **kwargs)
 
     monkeypatch.setattr(jobqueue, "SLURMCluster", local)

@@ -27,8 +27,9 @@ MC = dict(runs=64, horizon=30, seed=5)
 @pytest.fixture(scope="module")
 def client():
     with (
+        # The scheduler's HTTP server on a free port: another test may hold 8787 at the same time.
         distributed.LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+            n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
         ) as cluster,
         distributed.Client(cluster) as c,
     ):
